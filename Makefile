@@ -1,0 +1,33 @@
+# Everything runs inside .venv, created on first use from pyproject.toml.
+PYTHON ?= python3.11
+VENV := .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.installed
+OUT ?= out/demo
+BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
+
+.PHONY: demo test bench dist validate clean
+
+$(STAMP): pyproject.toml
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e '.[dev]'
+	touch $(STAMP)
+
+# Renders the bundled demo scene with SSR off and on, side by side in $(OUT).
+demo: $(STAMP)
+	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method none --out $(OUT)/none
+	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method ssr --out $(OUT)/ssr
+
+test: $(STAMP)
+	$(PY) -m pytest
+
+validate: $(STAMP)
+	$(PY) $(BLENDER_EXT) validate .
+
+dist: $(STAMP)
+	mkdir -p dist
+	$(PY) $(BLENDER_EXT) build --source-dir . --output-dir dist
+
+clean:
+	rm -rf out dist .pytest_cache

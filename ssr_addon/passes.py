@@ -1,0 +1,177 @@
+"""Render the passes SSR needs for the current frame and read them into numpy.
+
+One render writes a multilayer EXR to a private temporary folder; OpenImageIO
+reads it back (Blender 5 writes one EXR part per pass). Arrays are float32 in
+image order (row 0 is the top row).
+"""
+import os
+import tempfile
+from dataclasses import dataclass
+
+import bpy
+import numpy as np
+import OpenImageIO as oiio
+
+from .errors import SSRError
+from .overrides import TemporaryChanges
+from .roughness_aov import AOV_NAME, add_roughness_aov
+from .scene_io import camera_matrices, require_camera
+
+ENGINES = {"eevee": "BLENDER_EEVEE", "cycles": "CYCLES"}
+DEFAULT_SAMPLES = {"eevee": 16, "cycles": 128}
+
+
+@dataclass
+class FramePasses:
+    combined: np.ndarray         # (H, W, 4) the engine's final image, scene linear
+    depth: np.ndarray            # (H, W) distance along the view axis; >= clip_end is background
+    normal: np.ndarray           # (H, W, 3) world-space shading normal
+    roughness: np.ndarray        # (H, W) 1 where no specular BSDF was rendered
+    specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (FG)
+    specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces (probe/world), before FG
+    specular_direct: np.ndarray  # (H, W, 3) lamp highlights, kept as they are
+    view_matrix: np.ndarray      # (4, 4) world to view
+    projection_matrix: np.ndarray  # (4, 4) view to clip
+    clip_start: float
+    clip_end: float
+    engine: str
+
+    @property
+    def size(self):
+        return self.depth.shape[1], self.depth.shape[0]
+
+
+def render_passes(scene, engine="eevee", samples=None, resolution=None):
+    """Render SCENE's current frame with ENGINE and return its FramePasses.
+
+    The scene, its view layer and its materials are exactly as before on return.
+    """
+    camera = require_camera(scene)
+    if engine not in ENGINES:
+        raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
+    samples = samples or DEFAULT_SAMPLES[engine]
+    view_layer = next((layer for layer in scene.view_layers if layer.use), None)
+    if view_layer is None:
+        raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
+    with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
+        _configure_render(scene, view_layer, engine, samples, resolution, changes)
+        add_roughness_aov(scene, view_layer, changes)
+        layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
+        width, height = scene.render.resolution_x, scene.render.resolution_y
+        if engine == "eevee":
+            # EEVEE's "Specular Light" (glossy direct) holds lamp highlights and
+            # probe/world reflections together; a lamp-only render splits them.
+            specular_all = _layer(layers, "Glossy Direct")
+            specular_direct = _lamp_specular(scene, folder) if _has_lamps(scene) else np.zeros_like(specular_all)
+            specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
+        else:
+            specular_direct = _layer(layers, "Glossy Direct")
+            specular_indirect = _layer(layers, "Glossy Indirect")
+        view, projection = camera_matrices(scene, width, height)
+    aov = _layer(layers, AOV_NAME)
+    coverage = aov[..., 1]
+    roughness = np.where(coverage > 1e-3, aov[..., 0] / np.maximum(coverage, 1e-3), 1.0)
+    return FramePasses(
+        combined=_layer(layers, "Combined"),
+        depth=_layer(layers, "Depth")[..., 0],
+        normal=_layer(layers, "Normal"),
+        roughness=np.clip(roughness, 0.0, 1.0).astype(np.float32),
+        specular_color=_layer(layers, "Glossy Color"),
+        specular_indirect=specular_indirect,
+        specular_direct=specular_direct,
+        view_matrix=view, projection_matrix=projection,
+        clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine)
+
+
+def _configure_render(scene, view_layer, engine, samples, resolution, changes):
+    render = scene.render
+    changes.set(render, "engine", ENGINES[engine])
+    if resolution is not None:
+        changes.set(render, "resolution_x", resolution[0])
+        changes.set(render, "resolution_y", resolution[1])
+        changes.set(render, "resolution_percentage", 100)
+    if render.resolution_percentage != 100:
+        changes.set(render, "resolution_x", render.resolution_x * render.resolution_percentage // 100)
+        changes.set(render, "resolution_y", render.resolution_y * render.resolution_percentage // 100)
+        changes.set(render, "resolution_percentage", 100)
+    changes.set(render, "use_compositing", False)
+    changes.set(render, "use_sequencer", False)
+    for layer in scene.view_layers:
+        changes.set(layer, "use", layer == view_layer)
+    for flag in ("use_pass_combined", "use_pass_z", "use_pass_normal",
+                 "use_pass_glossy_direct", "use_pass_glossy_color"):
+        changes.set(view_layer, flag, True)
+    if engine == "eevee":
+        changes.set(scene.eevee, "taa_render_samples", samples)
+        # The baseline SSR improves on: reflections from light probes and the world only.
+        changes.set(scene.eevee, "use_raytracing", False)
+    else:
+        changes.set(view_layer, "use_pass_glossy_indirect", True)
+        changes.set(scene.cycles, "samples", samples)
+        changes.set(scene.cycles, "device", "CPU")
+
+
+def _render_to_exr(scene, path, changes):
+    settings = scene.render.image_settings
+    changes.set(settings, "media_type", "MULTI_LAYER_IMAGE")
+    changes.set(settings, "file_format", "OPEN_EXR_MULTILAYER")
+    changes.set(settings, "color_depth", "32")
+    changes.set(settings, "exr_codec", "ZIP")
+    changes.set(scene.render, "filepath", path)
+    changes.set(scene.render, "use_file_extension", False)
+    try:
+        bpy.ops.render.render(write_still=True, scene=scene.name)
+    except RuntimeError as error:
+        raise SSRError(f"render of scene '{scene.name}' failed: {str(error).strip()}") from None
+    if not os.path.isfile(path):
+        raise SSRError(f"render of scene '{scene.name}' wrote no image (is the render cancelled or empty?)")
+    return read_multilayer_exr(path)
+
+
+def read_multilayer_exr(path):
+    """{pass name: (H, W, C) float32} of a Blender multilayer EXR (one part per pass)."""
+    source = oiio.ImageInput.open(path)
+    if source is None:
+        raise SSRError(f"cannot read {path}: {oiio.geterror()}")
+    layers = {}
+    try:
+        subimage = 0
+        while source.seek_subimage(subimage, 0):
+            spec = source.spec()
+            pixels = source.read_image(subimage, 0, 0, spec.nchannels, "float")
+            if pixels is None:
+                raise SSRError(f"cannot read part {subimage} of {path}: {source.geterror()}")
+            name = spec.getattribute("name") or spec.channelnames[0].rpartition(".")[0]
+            layers[name.split(".", 1)[-1]] = np.ascontiguousarray(pixels, dtype=np.float32)
+            subimage += 1
+    finally:
+        source.close()
+    return layers
+
+
+def _layer(layers, name):
+    if name not in layers:
+        raise SSRError(f"the render has no '{name}' pass (found: {', '.join(sorted(layers))})")
+    return layers[name]
+
+
+def _has_lamps(scene):
+    return any(obj.type == "LIGHT" and not obj.hide_render and obj.data.specular_factor > 0
+               for obj in scene.objects)
+
+
+def _lamp_specular(scene, folder):
+    """EEVEE's specular light with the world black and light probes hidden: lamps alone."""
+    with TemporaryChanges() as lamp_only:
+        black = bpy.data.worlds.new("ssr_black_world")
+        black.color = (0.0, 0.0, 0.0)
+        for node in black.node_tree.nodes if black.node_tree else ():
+            if node.type == "BACKGROUND":
+                node.inputs["Strength"].default_value = 0.0
+        lamp_only.on_restore(lambda: bpy.data.worlds.remove(black))
+        lamp_only.set(scene, "world", black)
+        for obj in scene.objects:
+            if obj.type == "LIGHT_PROBE":
+                lamp_only.set(obj, "hide_render", True)
+        layers = _render_to_exr(scene, os.path.join(folder, "lamp_specular.exr"), lamp_only)
+    return _layer(layers, "Glossy Direct")
