@@ -1,0 +1,146 @@
+"""Thin layer over Blender's `gpu` module: backend start-up, textures, full-screen passes.
+
+Textures hold images in OpenGL order (row 0 at the bottom); numpy arrays in
+the rest of the add-on are in image order (row 0 at the top). `upload` and
+`download` flip between the two so no other code has to care.
+"""
+import time
+
+import bpy
+import gpu
+import numpy as np
+from gpu.types import GPUShaderCreateInfo, GPUStageInterfaceInfo
+
+from .errors import SSRError
+
+_FORMATS = {1: "R32F", 2: "RG32F", 4: "RGBA32F"}
+_backend_ready = False
+
+
+def ensure_backend():
+    """Bring up the GPU backend; in background mode `gpu` is unusable until a render ran.
+
+    A 1x1 Workbench render of a throw-away scene (with its own camera) starts it
+    without touching the user's scenes.
+    """
+    global _backend_ready
+    if _backend_ready:
+        return
+    if bpy.app.background:
+        scene = bpy.data.scenes.new("ssr_gpu_startup")
+        camera_data = bpy.data.cameras.new("ssr_gpu_startup")
+        camera = bpy.data.objects.new("ssr_gpu_startup", camera_data)
+        try:
+            scene.collection.objects.link(camera)
+            scene.camera = camera
+            scene.render.engine = "BLENDER_WORKBENCH"
+            scene.render.resolution_x = scene.render.resolution_y = 1
+            bpy.ops.render.render(write_still=False, scene=scene.name)
+        except RuntimeError as error:
+            raise SSRError(f"no GPU context: the start-up render failed ({str(error).strip()})") from None
+        finally:
+            bpy.data.objects.remove(camera)
+            bpy.data.cameras.remove(camera_data)
+            bpy.data.scenes.remove(scene)
+    try:
+        gpu.platform.backend_type_get()
+        probe = gpu.types.GPUTexture((1, 1), format="R32F")
+        del probe
+    except Exception as error:  # gpu raises SystemError/RuntimeError without a context
+        raise SSRError(f"no GPU context: {error}") from None
+    _backend_ready = True
+
+
+def describe_gpu():
+    return {"backend": gpu.platform.backend_type_get(), "renderer": gpu.platform.renderer_get(),
+            "version": gpu.platform.version_get(), "vendor": gpu.platform.vendor_get()}
+
+
+def upload(array):
+    """A float texture holding ARRAY ((H, W) or (H, W, C), image order); 3 channels are padded to 4."""
+    array = np.asarray(array, dtype=np.float32)
+    if array.ndim == 2:
+        array = array[..., None]
+    height, width, channels = array.shape
+    if channels == 3:
+        array = np.concatenate([array, np.ones((height, width, 1), np.float32)], axis=2)
+        channels = 4
+    if channels not in _FORMATS:
+        raise ValueError(f"cannot upload an array with {channels} channels")
+    pixels = np.ascontiguousarray(array[::-1])
+    buffer = gpu.types.Buffer("FLOAT", pixels.size, pixels.ravel())
+    return gpu.types.GPUTexture((width, height), format=_FORMATS[channels], data=buffer)
+
+
+def empty_texture(size, channels=4):
+    return gpu.types.GPUTexture(size, format=_FORMATS[channels])
+
+
+def download(texture, channels=None):
+    """The texture's pixels as an (H, W, C) float32 array in image order."""
+    width, height = texture.width, texture.height
+    # tex.read() advertises Fortran strides over C-ordered memory: ravel as stored.
+    flat = np.asarray(texture.read(), dtype=np.float32).ravel(order="K")
+    stored = flat.size // (width * height)
+    pixels = flat.reshape(height, width, stored)[::-1]
+    if channels is not None:
+        pixels = pixels[..., :channels]
+    return np.ascontiguousarray(pixels)
+
+
+class FullscreenPass:
+    """One fragment shader drawn over its whole target, declared with GPUShaderCreateInfo.
+
+    `declare(info)` adds the pass's own resources (samplers, outputs); the
+    fragment source is the shared GLSL prelude plus the pass's file.
+    """
+
+    def __init__(self, name, fragment_source, declare, typedefs=""):
+        info = GPUShaderCreateInfo()
+        interface = GPUStageInterfaceInfo(f"{name}_iface")
+        interface.smooth("VEC2", "screen_uv")
+        info.vertex_in(0, "VEC2", "position")
+        info.vertex_out(interface)
+        if typedefs:
+            info.typedef_source(typedefs)
+        declare(info)
+        info.vertex_source("void main() { screen_uv = position * 0.5 + 0.5; gl_Position = vec4(position, 0.0, 1.0); }")
+        info.fragment_source(fragment_source)
+        try:
+            self.shader = gpu.shader.create_from_info(info)
+        except Exception as error:
+            raise SSRError(f"GPU shader '{name}' failed to compile: {error}") from None
+        from gpu_extras.batch import batch_for_shader
+        self.batch = batch_for_shader(self.shader, "TRIS", {"position": ((-1, -1), (3, -1), (-1, 3))})
+        self.name = name
+
+    def draw(self, targets, samplers=(), uniform_blocks=()):
+        """Render into TARGETS (textures of one size); samplers and blocks are (name, value) pairs."""
+        framebuffer = gpu.types.GPUFrameBuffer(color_slots=tuple(targets))
+        with framebuffer.bind():
+            gpu.state.viewport_set(0, 0, targets[0].width, targets[0].height)
+            gpu.state.blend_set("NONE")
+            gpu.state.depth_test_set("NONE")
+            self.shader.bind()
+            for name, texture in samplers:
+                self.shader.uniform_sampler(name, texture)
+            for name, block in uniform_blocks:
+                self.shader.uniform_block(name, block)
+            self.batch.draw(self.shader)
+        return framebuffer
+
+
+class StageTimer:
+    """Wall-clock milliseconds per stage; waits for the GPU so a stage's time is its own."""
+
+    def __init__(self):
+        self.milliseconds = {}
+        self._start = time.perf_counter()
+
+    def lap(self, stage, framebuffer=None):
+        if framebuffer is not None:
+            with framebuffer.bind():  # reading one pixel waits for the queued GPU work
+                framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+        now = time.perf_counter()
+        self.milliseconds[stage] = self.milliseconds.get(stage, 0.0) + (now - self._start) * 1000.0
+        self._start = now
