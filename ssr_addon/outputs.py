@@ -1,0 +1,95 @@
+"""Writing frames: every file goes to a temporary name first and is renamed when complete,
+so an interrupted run leaves only whole files behind."""
+import json
+import os
+
+import bpy
+import numpy as np
+import OpenImageIO as oiio
+
+from .errors import SSRError
+from .overrides import TemporaryChanges
+
+
+def _partial_name(path):
+    folder, name = os.path.split(path)
+    return os.path.join(folder, f".{name}.partial")
+
+
+def _discard(partial):
+    if os.path.exists(partial):
+        os.remove(partial)
+
+
+def write_exr(path, channels):
+    """Write {channel name: (H, W) float32} as one single-part float EXR, channels in the given order.
+
+    Names of the form "Layer.C" make it a layered EXR that Blender and
+    compositing packages read as passes.
+    """
+    names = list(channels)
+    pixels = np.stack([np.asarray(channels[name], dtype=np.float32) for name in names], axis=-1)
+    height, width = pixels.shape[:2]
+    spec = oiio.ImageSpec(width, height, len(names), "float")
+    spec.channelnames = tuple(names)
+    spec.attribute("compression", "zip")
+    partial = _partial_name(path)
+    output = oiio.ImageOutput.create("openexr")
+    try:
+        if output is None or not output.open(partial, spec):
+            raise SSRError(f"cannot write {path}: {oiio.geterror() or (output and output.geterror())}")
+        if not output.write_image(np.ascontiguousarray(pixels)):
+            raise SSRError(f"cannot write {path}: {output.geterror()}")
+        output.close()
+        os.replace(partial, path)
+    finally:
+        _discard(partial)
+
+
+def write_rgba_exr(path, rgba):
+    write_exr(path, {name: rgba[..., index] for index, name in enumerate("RGBA")})
+
+
+def write_display_png(path, rgba, scene):
+    """8-bit PNG through the scene's view transform, look, exposure and gamma (as F12 saves it)."""
+    height, width = rgba.shape[:2]
+    image = bpy.data.images.new("ssr_display", width, height, alpha=True, float_buffer=True)
+    partial = _partial_name(path)
+    try:
+        image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], dtype=np.float32).ravel())
+        with TemporaryChanges() as changes:
+            settings = scene.render.image_settings
+            changes.set(settings, "media_type", "IMAGE")
+            changes.set(settings, "file_format", "PNG")
+            changes.set(settings, "color_mode", "RGBA")
+            changes.set(settings, "color_depth", "8")
+            image.save_render(partial, scene=scene)
+        os.replace(partial, path)
+    except RuntimeError as error:
+        raise SSRError(f"cannot write {path}: {str(error).strip()}") from None
+    finally:
+        bpy.data.images.remove(image)
+        _discard(partial)
+
+
+def write_json(path, data):
+    partial = _partial_name(path)
+    try:
+        with open(partial, "w", encoding="utf-8") as stream:
+            json.dump(data, stream, indent=2, sort_keys=False)
+            stream.write("\n")
+        os.replace(partial, path)
+    finally:
+        _discard(partial)
+
+
+def prepare_output_folder(folder):
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as error:
+        raise SSRError(f"cannot create output folder {folder}: {error.strerror}") from None
+    if not os.access(folder, os.W_OK):
+        raise SSRError(f"output folder {folder} is not writable")
+    for name in os.listdir(folder):  # leftovers of an interrupted run
+        if name.startswith(".") and name.endswith(".partial"):
+            os.remove(os.path.join(folder, name))
