@@ -20,7 +20,7 @@ demo: $(STAMP)
 	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method ssr --out $(OUT)/ssr
 
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest tests
 
 validate: $(STAMP)
 	$(PY) $(BLENDER_EXT) validate .

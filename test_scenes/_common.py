@@ -8,7 +8,6 @@ from mathutils import Vector
 def principled(name, base_color=(0.8, 0.8, 0.8), roughness=0.5, metallic=0.0,
                emission=(0.0, 0.0, 0.0), emission_strength=0.0):
     material = bpy.data.materials.new(name)
-    material.use_nodes = True
     bsdf = material.node_tree.nodes["Principled BSDF"]
     bsdf.inputs["Base Color"].default_value = (*base_color, 1.0)
     bsdf.inputs["Roughness"].default_value = roughness
@@ -57,7 +56,6 @@ def add_sun(scene, rotation_degrees, strength=3.0):
 
 def set_world(scene, color, strength=1.0):
     world = bpy.data.worlds.new("World")
-    world.use_nodes = True
     background = world.node_tree.nodes["Background"]
     background.inputs["Color"].default_value = (*color, 1.0)
     background.inputs["Strength"].default_value = strength

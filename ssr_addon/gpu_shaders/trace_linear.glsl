@@ -6,8 +6,10 @@
  * The ray is projected to the screen and clipped to it, then marched in equal
  * screen-space steps of at least `trace_stride` pixels along its major axis;
  * depth along the ray is interpolated perspective-correctly (1/w). A step hits
- * when the ray is behind the depth buffer by less than `thickness`; a binary
- * search between the last two steps refines it. tests/oracles.py mirrors this
+ * when the depth span the ray covers in it overlaps the surface and the
+ * `thickness` assumed behind it (a per-step "behind by less than thickness"
+ * test misses surfaces where the ray's depth changes fast); a binary search
+ * between the last two steps refines the hit. tests/oracles.py mirrors this
  * function step for step. */
 
 struct ScreenRay {
@@ -74,10 +76,15 @@ float march_linear(ScreenRay ray)
   }
   float dt = t_exit / steps;
   float thickness = params.march.x;
+  float ray_front = ray_depth_at(ray, 0.0);
   for (int i = 1; i <= int(steps); i++) {
     float t = dt * float(i);
-    float behind = ray_depth_at(ray, t) - scene_depth_at(ray, t);
-    if (behind > 0.0 && behind < thickness) {
+    float ray_back = ray_depth_at(ray, t);
+    float surface = scene_depth_at(ray, t);
+    /* The step's depth span [ray_front, ray_back] overlaps the surface's [surface, surface + thickness]. */
+    bool hit = ray_back > surface && ray_front < surface + thickness;
+    ray_front = ray_back;
+    if (hit) {
       float t_front = t - dt, t_behind = t;
       for (int j = 0; j < int(params.shaping.x); j++) {
         float t_mid = 0.5 * (t_front + t_behind);

@@ -1,0 +1,73 @@
+"""Fixtures shared by the whole suite (one GPU backend per session, like moderngl's tests)."""
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENES = os.path.join(REPO, "test_scenes")
+
+
+@pytest.fixture(scope="session")
+def gpu_backend():
+    from ssr_addon.gpu_backend import ensure_backend
+    ensure_backend()
+
+
+def run_cli(*args, check=True):
+    """Run `python -m ssr_addon ARGS` in a fresh process (scene loading replaces the open file)."""
+    result = subprocess.run([sys.executable, "-m", "ssr_addon", *map(str, args)], cwd=REPO,
+                            capture_output=True, text=True, timeout=600)
+    if check and result.returncode != 0:
+        raise AssertionError(f"CLI failed ({result.returncode}): {result.stderr[-2000:]}")
+    return result
+
+
+def read_exr(path):
+    """{channel name: (H, W) float32} of a single-part EXR."""
+    import OpenImageIO as oiio
+    source = oiio.ImageInput.open(str(path))
+    assert source is not None, oiio.geterror()
+    spec = source.spec()
+    pixels = source.read_image(0, 0, 0, spec.nchannels, "float")
+    source.close()
+    return {name: np.asarray(pixels[..., index]) for index, name in enumerate(spec.channelnames)}
+
+
+def rgb(channels, layer=None):
+    prefix = f"{layer}." if layer else ""
+    return np.stack([channels[f"{prefix}{c}"] for c in "RGB"], axis=-1)
+
+
+class RenderedScene:
+    """One CLI render's output folder."""
+
+    def __init__(self, folder):
+        self.folder = folder
+        with open(os.path.join(folder, "report.json"), encoding="utf-8") as stream:
+            self.report = json.load(stream)
+
+    def final(self, frame=1):
+        return rgb(read_exr(os.path.join(self.folder, f"frame_{frame:04d}.exr")))
+
+    def passes(self, frame=1):
+        return read_exr(os.path.join(self.folder, f"frame_{frame:04d}.passes.exr"))
+
+
+@pytest.fixture(scope="session")
+def render_scene(tmp_path_factory):
+    """render_scene(builder, method, *extra_args) -> RenderedScene, cached per argument set."""
+    cache = {}
+
+    def render(builder, method, *extra):
+        key = (builder, method, extra)
+        if key not in cache:
+            folder = tmp_path_factory.mktemp(f"{builder}_{method}")
+            run_cli("render", os.path.join(SCENES, f"{builder}.py"), "--method", method,
+                    "--out", folder, *extra)
+            cache[key] = RenderedScene(str(folder))
+        return cache[key]
+    return render

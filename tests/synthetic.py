@@ -1,0 +1,67 @@
+"""Analytic G-buffers: a camera at the origin looking down -Z at a few planes and boxes.
+
+Depth and normals come from exact ray casts through pixel centres, so tests
+know the true geometry behind every pixel.
+"""
+import numpy as np
+
+
+def perspective(width, height, fov_y_degrees=60.0, near=0.1, far=100.0):
+    focal = 1.0 / np.tan(np.radians(fov_y_degrees) / 2)
+    aspect = width / height
+    return np.array([
+        [focal / aspect, 0, 0, 0],
+        [0, focal, 0, 0],
+        [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)],
+        [0, 0, -1, 0]], dtype=np.float32)
+
+
+def pixel_rays(width, height, projection):
+    """Unnormalised view-space directions with z = -1 through every pixel centre (image order)."""
+    v, u = np.mgrid[0:height, 0:width]
+    ndc_x = (u + 0.5) / width * 2 - 1
+    ndc_y = 1 - (v + 0.5) / height * 2
+    return np.stack([ndc_x / projection[0, 0], ndc_y / projection[1, 1], -np.ones_like(ndc_x, float)], -1)
+
+
+def raycast(width, height, projection, boxes, floor_y=None, far=100.0):
+    """Depth (distance along -Z) and view normals of axis-aligned boxes and an optional floor.
+
+    boxes: list of (min_corner, max_corner). Background pixels get depth `far`.
+    """
+    rays = pixel_rays(width, height, projection)
+    depth = np.full((height, width), far, np.float64)
+    normal = np.zeros((height, width, 3), np.float64)
+    normal[..., 2] = 1.0
+    if floor_y is not None:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = floor_y / rays[..., 1]
+        hit = (rays[..., 1] < 0) & (t > 0) & (t < depth)
+        depth[hit] = t[hit]
+        normal[hit] = (0, 1, 0)
+    for low, high in boxes:
+        low, high = np.asarray(low, float), np.asarray(high, float)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t1 = low / rays
+            t2 = high / rays
+        t_near = np.nanmax(np.minimum(t1, t2), axis=-1)
+        t_far = np.nanmin(np.maximum(t1, t2), axis=-1)
+        hit = (t_near <= t_far) & (t_near > 0) & (t_near < depth)
+        axis = np.argmax(np.minimum(t1, t2), axis=-1)
+        for a in range(3):
+            face = hit & (axis == a)
+            sign = -np.sign(rays[..., a])
+            normal[face] = 0
+            normal[face, a] = sign[face]
+        depth[hit] = t_near[hit]  # rays have z = -1, so t is the view depth
+    return depth.astype(np.float32), normal.astype(np.float32)
+
+
+def corridor(width=80, height=48):
+    """Floor, back wall, a box and a thin pole: reflections of every kind on a mirror floor."""
+    projection = perspective(width, height)
+    boxes = [((-3.0, -1.0, -9.0), (3.0, 3.0, -8.0)),      # back wall
+             ((-1.6, -1.0, -5.5), (-0.4, 0.2, -4.5)),     # box on the floor
+             ((0.9, -1.0, -4.05), (1.0, 1.2, -3.95))]     # thin pole
+    depth, normal = raycast(width, height, projection, boxes, floor_y=-1.0)
+    return depth, normal, projection

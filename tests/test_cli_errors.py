@@ -1,0 +1,53 @@
+"""Bad input: one clear line, a non-zero exit, nothing written."""
+import os
+
+import pytest
+
+from conftest import SCENES, run_cli
+
+NO_CAMERA = """
+import bpy
+def build(scene):
+    bpy.ops.mesh.primitive_cube_add()
+"""
+NO_BUILD = "x = 1\n"
+
+
+def error_lines(result):
+    return [line for line in result.stderr.splitlines() if line.strip() and "EGL" not in line]
+
+
+@pytest.mark.parametrize("case, extra, expected", [
+    ("missing file", [], "scene file not found"),
+    ("no camera", [], "has no active camera"),
+    ("no build", [], "defines no build(scene)"),
+    ("bad frames", ["--frames", "ten"], "--frames"),
+    ("reversed frames", ["--frames", "9-3"], "reversed"),
+    ("bad resolution", ["--resolution", "320by180"], "--resolution"),
+    ("bad setting", ["--set", "thickness=thick"], "thickness"),
+    ("unknown setting", ["--set", "colour=1"], "colour"),
+])
+def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
+    scene = {"missing file": tmp_path / "absent.blend",
+             "no camera": tmp_path / "no_camera.py",
+             "no build": tmp_path / "no_build.py"}.get(case, os.path.join(SCENES, "mirror_floor.py"))
+    if case == "no camera":
+        scene.write_text(NO_CAMERA)
+    if case == "no build":
+        scene.write_text(NO_BUILD)
+    out = tmp_path / "out"
+    result = run_cli("render", scene, "--out", out, *extra, check=False)
+    lines = error_lines(result)
+    assert result.returncode == 2
+    assert len(lines) == 1 and lines[0].startswith("error:") and expected in lines[0], result.stderr
+    assert "Traceback" not in result.stderr
+    assert not out.exists() or not os.listdir(out)
+
+
+def test_corrupt_blend_file(tmp_path):
+    corrupt = tmp_path / "corrupt.blend"
+    corrupt.write_bytes(b"BLENDER-v500 this is not a blend file" * 10)
+    result = run_cli("render", corrupt, "--out", tmp_path / "out", check=False)
+    lines = error_lines(result)
+    assert result.returncode == 2 and lines[-1].startswith("error: cannot open"), result.stderr
+    assert "Traceback" not in result.stderr
