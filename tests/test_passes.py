@@ -1,0 +1,101 @@
+"""Pass rendering: the roughness AOV follows whatever drives Roughness, and the scene is left untouched."""
+import bpy
+import numpy as np
+import pytest
+
+from ssr_addon.passes import render_passes
+
+
+def _plane_with_roughness(name, x, wire_roughness):
+    bpy.ops.mesh.primitive_plane_add(size=0.9, location=(x, 0, 0))
+    plane = bpy.context.active_object
+    plane.name = name
+    material = bpy.data.materials.new(name)
+    bsdf = material.node_tree.nodes["Principled BSDF"]
+    wire_roughness(material.node_tree, bsdf.inputs["Roughness"])
+    plane.data.materials.append(material)
+    return plane
+
+
+def _constant(tree, socket):
+    socket.default_value = 0.3
+
+
+def _math_chain(tree, socket):
+    add = tree.nodes.new("ShaderNodeMath")
+    add.operation = "ADD"
+    add.inputs[0].default_value = 0.2
+    add.inputs[1].default_value = 0.25
+    tree.links.new(add.outputs[0], socket)
+
+
+def _texture(tree, socket):
+    image = bpy.data.images.new("grey", 4, 4)
+    image.generated_color = (0.7, 0.7, 0.7, 1.0)
+    image.colorspace_settings.name = "Non-Color"
+    texture = tree.nodes.new("ShaderNodeTexImage")
+    texture.image = image
+    tree.links.new(texture.outputs["Color"], socket)
+
+
+def _snapshot(scene):
+    """Everything the pass render touches, as plain data."""
+    materials = {}
+    for material in bpy.data.materials:
+        tree = material.node_tree
+        materials[material.name] = (
+            sorted((n.name, n.bl_idname) for n in tree.nodes),
+            sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
+                   for l in tree.links))
+    layer = scene.view_layers[0]
+    render = scene.render
+    return (materials, [a.name for a in layer.aovs], layer.use_pass_z, layer.use_pass_normal,
+            layer.use_pass_glossy_direct, render.engine, render.filepath, render.resolution_x,
+            render.image_settings.file_format, scene.eevee.taa_render_samples, scene.world)
+
+
+@pytest.fixture(scope="module")
+def roughness_scene():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    for name, x, wiring in (("constant", -1, _constant), ("chain", 0, _math_chain), ("texture", 1, _texture)):
+        _plane_with_roughness(name, x, wiring)
+    bpy.ops.mesh.primitive_plane_add(size=0.9, location=(0, 1, 0))  # no material at all
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.data.type = "ORTHO"
+    camera.data.ortho_scale = 3.0
+    camera.location = (0, 0.5, 5)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    scene.render.resolution_x, scene.render.resolution_y = 60, 60
+    return scene
+
+
+def test_roughness_aov_follows_every_kind_of_input(roughness_scene):
+    passes = render_passes(roughness_scene, "eevee", samples=1)
+    roughness = passes.roughness
+    # The camera sees x in [-1.5, 1.5] and y in [-1, 2]: 20 px per unit, row 0 at y = 2.
+    def at(x, y):
+        return roughness[int((2 - y) * 20), int((x + 1.5) * 20)]
+    assert at(-1, 0) == pytest.approx(0.3, abs=2e-3)
+    assert at(0, 0) == pytest.approx(0.45, abs=2e-3)
+    assert at(1, 0) == pytest.approx(0.7, abs=4e-3)
+    assert at(0, 1) == 1.0, "an object without a material is left to the probes"
+    assert at(-1.4, 1.9) == 1.0, "the sky traces nothing"
+
+
+def test_scene_is_exactly_as_before(roughness_scene):
+    before = _snapshot(roughness_scene)
+    render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+    assert _snapshot(roughness_scene) == before
+
+
+def test_passes_have_the_shapes_and_camera_of_the_render(roughness_scene):
+    passes = render_passes(roughness_scene, "eevee", samples=1, resolution=(40, 20))
+    assert passes.size == (40, 20)
+    assert passes.combined.shape == (20, 40, 4) and passes.normal.shape == (20, 40, 3)
+    assert np.isfinite(passes.combined).all()
+    # The 2:1 view spans y in [-0.25, 1.25]; row 16 is y = 0 on the "chain" plane,
+    # whose normal faces the camera 5 units above it (orthographic: depth 5).
+    assert np.allclose(passes.normal[16, 20], (0, 0, 1), atol=1e-2)
+    assert passes.depth[16, 20] == pytest.approx(5.0, abs=1e-2)
