@@ -9,7 +9,7 @@ import sys
 
 from .errors import SSRError
 from .params import ChainSettings
-from .render_job import RenderRequest, parse_frames, parse_resolution, run_render
+from .render_job import METHODS, RenderRequest, parse_frames, parse_resolution, run_render
 from .scene_io import load_scene, require_camera
 
 
@@ -25,7 +25,7 @@ def build_parser():
     render = commands.add_parser("render", help="render frames with SSR, without it, or with Cycles")
     render.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
     render.add_argument("--out", required=True, help="output folder")
-    render.add_argument("--method", default="ssr", choices=("ssr", "none", "cycles"))
+    render.add_argument("--method", default="ssr", choices=METHODS)
     render.add_argument("--engine", default="eevee", choices=("eevee", "cycles"),
                         help="engine that renders the input passes")
     render.add_argument("--resolution", help="WIDTHxHEIGHT (default: the scene's)")

@@ -19,6 +19,12 @@ from .scene_io import camera_matrices, require_camera
 
 ENGINES = {"eevee": "BLENDER_EEVEE", "cycles": "CYCLES"}
 DEFAULT_SAMPLES = {"eevee": 16, "cycles": 128}
+# EEVEE's own screen-space ray tracing, the peer a Blender user would pick instead:
+# its defaults, and the highest quality its options allow.
+EEVEE_RAYTRACING = {
+    "default": {},
+    "high": {"resolution_scale": "1", "screen_trace_quality": 1.0, "trace_max_roughness": 1.0},
+}
 
 
 @dataclass
@@ -41,9 +47,14 @@ class FramePasses:
         return self.depth.shape[1], self.depth.shape[0]
 
 
-def render_passes(scene, engine="eevee", samples=None, resolution=None):
+def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_raytracing=None,
+                  split_lamp_specular=True):
     """Render SCENE's current frame with ENGINE and return its FramePasses.
 
+    EEVEE renders with its ray tracing off (probe/world reflections, what SSR
+    improves on) unless `eevee_raytracing` names a preset of EEVEE_RAYTRACING.
+    `split_lamp_specular=False` skips the lamp-only render when nothing will
+    replace the indirect specular (then specular_direct is zero).
     The scene, its view layer and its materials are exactly as before on return.
     """
     camera = require_camera(scene)
@@ -54,7 +65,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None):
     if view_layer is None:
         raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
-        _configure_render(scene, view_layer, engine, samples, resolution, changes)
+        _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
         add_roughness_aov(scene, view_layer, changes)
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
         width, height = scene.render.resolution_x, scene.render.resolution_y
@@ -62,7 +73,8 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None):
             # EEVEE's "Specular Light" (glossy direct) holds lamp highlights and
             # probe/world reflections together; a lamp-only render splits them.
             specular_all = _layer(layers, "Glossy Direct")
-            specular_direct = _lamp_specular(scene, folder) if _has_lamps(scene) else np.zeros_like(specular_all)
+            specular_direct = _lamp_specular(scene, folder) if split_lamp_specular and _has_lamps(scene) \
+                else np.zeros_like(specular_all)
             specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
         else:
             specular_direct = _layer(layers, "Glossy Direct")
@@ -83,7 +95,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None):
         clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine)
 
 
-def _configure_render(scene, view_layer, engine, samples, resolution, changes):
+def _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing=None):
     render = scene.render
     changes.set(render, "engine", ENGINES[engine])
     if resolution is not None:
@@ -103,8 +115,11 @@ def _configure_render(scene, view_layer, engine, samples, resolution, changes):
         changes.set(view_layer, flag, True)
     if engine == "eevee":
         changes.set(scene.eevee, "taa_render_samples", samples)
-        # The baseline SSR improves on: reflections from light probes and the world only.
-        changes.set(scene.eevee, "use_raytracing", False)
+        changes.set(scene.eevee, "use_raytracing", eevee_raytracing is not None)
+        if eevee_raytracing is not None:
+            changes.set(scene.eevee, "ray_tracing_method", "SCREEN")
+            for option, value in EEVEE_RAYTRACING[eevee_raytracing].items():
+                changes.set(scene.eevee.ray_tracing_options, option, value)
     else:
         changes.set(view_layer, "use_pass_glossy_indirect", True)
         changes.set(scene.cycles, "samples", samples)

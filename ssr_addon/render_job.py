@@ -19,7 +19,10 @@ from .params import ChainSettings
 from .passes import ENGINES, render_passes
 from .scene_io import require_camera
 
-METHODS = ("ssr", "none", "cycles")
+# ssr: this project; none: probe/world reflections only; cycles: the path-traced
+# reference; eevee-rt / eevee-rt-high: EEVEE's own screen-space ray tracing.
+METHODS = ("ssr", "none", "cycles", "eevee-rt", "eevee-rt-high")
+EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}
 
 
 @dataclass
@@ -39,6 +42,8 @@ class RenderRequest:
             raise SSRError(f"unknown engine {self.engine!r}: expected one of {', '.join(ENGINES)}")
         if self.method == "cycles":
             self.engine = "cycles"  # the reference is a Cycles path trace by definition
+        if self.method in EEVEE_RAYTRACING_METHODS:
+            self.engine = "eevee"
         if self.samples is not None and self.samples < 1:
             raise SSRError(f"--samples must be at least 1, got {self.samples}")
 
@@ -70,11 +75,12 @@ def frame_numbers(scene, frames):
 def render_frame(scene, request):
     """Render the scene's current frame as REQUEST asks; returns (images, stage milliseconds)."""
     timer = StageTimer()
-    engine = "cycles" if request.method == "cycles" else request.engine
-    passes = render_passes(scene, engine, request.samples, request.resolution)
+    use_ssr = request.method == "ssr" and request.settings.use_ssr
+    passes = render_passes(scene, request.engine, request.samples, request.resolution,
+                           EEVEE_RAYTRACING_METHODS.get(request.method), split_lamp_specular=use_ssr)
     timer.lap("render")
     height, width = passes.depth.shape
-    if request.method == "ssr" and request.settings.use_ssr:
+    if use_ssr:
         ensure_backend()
         inputs = ChainInputs.from_passes(passes)
         timer.lap("upload")
