@@ -114,11 +114,12 @@ class FullscreenPass:
         self.batch = batch_for_shader(self.shader, "TRIS", {"position": ((-1, -1), (3, -1), (-1, 3))})
         self.name = name
 
-    def draw(self, targets, samplers=(), uniform_blocks=()):
-        """Render into TARGETS (textures of one size); samplers and blocks are (name, value) pairs."""
+    def draw(self, targets, samplers=(), uniform_blocks=(), constants=(), region=None):
+        """Render into TARGETS (textures of one size); samplers, blocks and int-vector
+        constants are (name, value) pairs; REGION (x, y, width, height) limits the draw."""
         framebuffer = gpu.types.GPUFrameBuffer(color_slots=tuple(targets))
         with framebuffer.bind():
-            gpu.state.viewport_set(0, 0, targets[0].width, targets[0].height)
+            gpu.state.viewport_set(*(region or (0, 0, targets[0].width, targets[0].height)))
             gpu.state.blend_set("NONE")
             gpu.state.depth_test_set("NONE")
             self.shader.bind()
@@ -126,8 +127,28 @@ class FullscreenPass:
                 self.shader.uniform_sampler(name, texture)
             for name, block in uniform_blocks:
                 self.shader.uniform_block(name, block)
+            for name, value in constants:
+                self.shader.uniform_int(name, value)
             self.batch.draw(self.shader)
-        return framebuffer
+
+
+class TexturePool:
+    """Textures kept from frame to frame by role, re-created only when their size changes,
+    so a long run's GPU memory stays flat."""
+
+    def __init__(self):
+        self._textures = {}
+
+    def get(self, role, size, channels=4):
+        key = (role, channels)
+        texture = self._textures.get(key)
+        if texture is None or (texture.width, texture.height) != tuple(size):
+            texture = empty_texture(tuple(size), channels)
+            self._textures[key] = texture
+        return texture
+
+    def release(self):
+        self._textures.clear()
 
 
 class StageTimer:
@@ -137,8 +158,10 @@ class StageTimer:
         self.milliseconds = {}
         self._start = time.perf_counter()
 
-    def lap(self, stage, framebuffer=None):
-        if framebuffer is not None:
+    def lap(self, stage, texture=None):
+        """Close STAGE; with TEXTURE (its output), first wait until the GPU has written it."""
+        if texture is not None:
+            framebuffer = gpu.types.GPUFrameBuffer(color_slots=(texture,))
             with framebuffer.bind():  # reading one pixel waits for the queued GPU work
                 framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
         now = time.perf_counter()

@@ -2,54 +2,94 @@
 
 Pure Python (no bpy) so the chain, the CLI and the tests share it. The
 PropertyGroup in `settings.py` is generated from SETTINGS_SCHEMA, so a setting
-is declared exactly once.
+is declared exactly once; metadata["group"] places it in a panel.
 """
 from dataclasses import dataclass, field, fields, replace
 
 from .errors import SSRError
 
 
-def _setting(default, description, minimum=None, maximum=None, items=None):
+def _setting(default, description, minimum=None, maximum=None, items=None, group="tracing"):
     return field(default=default, metadata={
-        "description": description, "min": minimum, "max": maximum, "items": items})
+        "description": description, "min": minimum, "max": maximum, "items": items, "group": group})
 
 
 @dataclass(frozen=True)
 class ChainSettings:
-    """Parameters of the reflection chain; names follow EEVEE's where one exists."""
+    """Parameters of the reflection chain; names follow EEVEE's where one exists.
+
+    Each `use_*` switch turns one stage of the slides off, so its effect can be
+    seen and measured (STAGE_TOGGLES).
+    """
     use_ssr: bool = _setting(True, "Trace screen-space reflections (off: probe/world reflections only)")
-    max_roughness: float = _setting(
-        0.5, "Surfaces rougher than this keep their probe/world reflection", 0.0, 1.0)
+    # Tracing
+    use_hiz: bool = _setting(True, "Trace smooth surfaces hierarchically through a min-depth pyramid (expensive rays)")
+    expensive_ray_budget: float = _setting(
+        0.3, "Largest fraction of traced rays that may be expensive Hi-Z rays; the smoothest pixels get them",
+        0.0, 1.0)
+    hiz_max_iterations: int = _setting(96, "Hi-Z tracing: most cell visits per ray", 8, 1024)
+    use_importance_sampling: bool = _setting(
+        True, "Sample ray directions from the GGX lobe (Halton sequence); off: mirror directions only")
+    half_resolution: bool = _setting(True, "Trace one ray per 2x2 pixels and resolve at full resolution")
     thickness: float = _setting(
         0.2, "Assumed depth of every surface in the depth buffer, in scene units", 0.001, 100.0)
-    trace_steps: int = _setting(
-        96, "Linear march: most depth-buffer tests per ray", 4, 1024)
+    trace_steps: int = _setting(64, "Cheap rays (linear march): most depth-buffer tests per ray", 4, 1024)
     trace_stride: float = _setting(
-        1.0, "Linear march: shortest step between depth tests, in pixels", 0.5, 64.0)
-    refine_steps: int = _setting(
-        6, "Binary search steps that refine a hit between two march steps", 0, 16)
-    max_distance: float = _setting(
-        100.0, "Longest reflection ray, in scene units", 0.01, 10000.0)
+        2.0, "Cheap rays (linear march): shortest step between depth tests, in pixels", 0.5, 64.0)
+    refine_steps: int = _setting(6, "Binary search steps that refine a linear-march hit", 0, 16)
+    max_distance: float = _setting(100.0, "Longest reflection ray, in scene units", 0.01, 10000.0)
+    # Resolve
+    resolve_samples: int = _setting(
+        4, "Rays each pixel reuses from its neighbourhood (ratio estimator); 1: its own ray only", 1, 9,
+        group="resolve")
+    use_cone_filter: bool = _setting(
+        True, "Read each reused ray as a cone from a colour pyramid, wider with roughness and distance",
+        group="resolve")
+    # Temporal
+    use_temporal: bool = _setting(
+        True, "Blend with the previous frames' reflections, reprojected through both frames' cameras",
+        group="temporal")
+    temporal_reprojection: str = _setting(
+        "hit", "Which point is reprojected into the previous frame: the ray hit (virtual image) or the surface",
+        items=(("hit", "Hit Point", "Reproject the reflected hit point: reflections stay put under camera motion"),
+               ("surface", "Surface", "Reproject the reflecting surface: reflections smear under camera motion")),
+        group="temporal")
+    temporal_weight: float = _setting(
+        0.9, "Largest share of the history in a temporally filtered pixel", 0.0, 0.99, group="temporal")
+    accumulate_frames: int = _setting(
+        4, "Stills: jittered iterations accumulated by the temporal filter (animation frames add one each)",
+        1, 256, group="temporal")
+    # Fading
+    max_roughness: float = _setting(
+        0.5, "Surfaces rougher than this keep their probe/world reflection", 0.0, 1.0, group="fading")
     border_fade: float = _setting(
-        0.08, "Fade hits within this fraction of the screen from its border", 0.0, 0.5)
+        0.08, "Fade hits within this fraction of the screen from its border", 0.0, 0.5, group="fading")
     camera_facing_fade: float = _setting(
-        0.5, "Fade rays that point back towards the camera (0: never fade)", 0.0, 1.0)
+        0.5, "Fade rays that point back towards the camera (0: never fade)", 0.0, 1.0, group="fading")
 
     def with_overrides(self, overrides):
-        """Return a copy with `key=value` strings (from --set) parsed by each field's type."""
+        """Return a copy with `key=value` strings (from --set) parsed by each field's type.
+
+        `preset=NAME` applies a named preset first; later keys override it.
+        """
         known = {f.name: f for f in fields(self)}
-        values = {}
+        settings, values = self, {}
         for text in overrides:
             key, sep, raw = text.partition("=")
-            key = key.strip()
+            key, raw = key.strip(), raw.strip()
+            if sep and key == "preset":
+                settings, values = preset(raw), {}
+                continue
             if not sep or key not in known:
-                raise SSRError(f"--set {text!r}: expected key=value with key one of {', '.join(sorted(known))}")
-            values[key] = _parse_value(known[key], raw.strip())
-        return replace(self, **values)
+                raise SSRError(f"--set {text!r}: expected key=value with key one of preset, "
+                               f"{', '.join(sorted(known))}")
+            values[key] = _parse_value(known[key], raw)
+        return replace(settings, **values)
 
 
 def _parse_value(spec, raw):
     kind = type(spec.default)
+    items = spec.metadata["items"]
     try:
         if kind is bool:
             lowered = raw.lower()
@@ -60,10 +100,29 @@ def _parse_value(spec, raw):
             value = kind(raw)
     except ValueError:
         raise SSRError(f"--set {spec.name}={raw}: not a valid {kind.__name__}") from None
+    if items and value not in [item[0] for item in items]:
+        raise SSRError(f"--set {spec.name}={raw}: expected one of {', '.join(item[0] for item in items)}")
     low, high = spec.metadata["min"], spec.metadata["max"]
-    if kind is not bool and ((low is not None and value < low) or (high is not None and value > high)):
+    if kind in (int, float) and ((low is not None and value < low) or (high is not None and value > high)):
         raise SSRError(f"--set {spec.name}={raw}: must lie in [{low}, {high}]")
     return value
 
 
 SETTINGS_SCHEMA = fields(ChainSettings)
+
+# Switches that turn one stage of the chain off (the bench switches each off in turn).
+STAGE_TOGGLES = ("use_hiz", "use_importance_sampling", "half_resolution", "use_cone_filter", "use_temporal")
+
+PRESETS = {
+    "draft": {"half_resolution": True, "resolve_samples": 4, "expensive_ray_budget": 0.1,
+              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_frames": 1},
+    "balanced": {},
+    "high": {"half_resolution": False, "resolve_samples": 9, "expensive_ray_budget": 1.0,
+             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_frames": 16},
+}
+
+
+def preset(name):
+    if name not in PRESETS:
+        raise SSRError(f"unknown preset {name!r}: expected one of {', '.join(PRESETS)}")
+    return replace(ChainSettings(), **PRESETS[name])

@@ -11,7 +11,7 @@ from dataclasses import asdict, dataclass, field
 import bpy
 import numpy as np
 
-from .chain import ChainInputs, run_chain
+from .chain import ChainInputs, ChainState, run_chain
 from .errors import SSRError
 from .gpu_backend import StageTimer, describe_gpu, download, ensure_backend
 from .outputs import prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr
@@ -72,34 +72,60 @@ def frame_numbers(scene, frames):
     return list(range(frames[0], frames[1] + 1))
 
 
-def render_frame(scene, request):
-    """Render the scene's current frame as REQUEST asks; returns (images, stage milliseconds)."""
+def render_frame(scene, request, state=None):
+    """Render the scene's current frame as REQUEST asks; returns (images, StageTimer).
+
+    STATE (a ChainState) carries temporal history from the previous frame; a
+    fresh one means a still, accumulated over `accumulate_frames` iterations.
+    """
     timer = StageTimer()
     use_ssr = request.method == "ssr" and request.settings.use_ssr
     passes = render_passes(scene, request.engine, request.samples, request.resolution,
                            EEVEE_RAYTRACING_METHODS.get(request.method), split_lamp_specular=use_ssr)
     timer.lap("render")
     height, width = passes.depth.shape
-    if use_ssr:
-        ensure_backend()
-        inputs = ChainInputs.from_passes(passes)
-        timer.lap("upload")
-        outputs = run_chain(inputs, request.settings, timer)
-        hit = download(outputs.hit_tx)
-        reflection = download(outputs.reflection_tx)
-        final = download(outputs.final_tx)
-        timer.lap("readback")
-    else:
-        hit = np.zeros((height, width, 4), np.float32)
-        reflection = np.zeros((height, width, 4), np.float32)
-        final = passes.combined
-    images = {"final": final, "passes": passes, "hit": hit, "reflection": reflection}
+    images = {"passes": passes, "final": passes.combined, "stats": {}}
+    if not use_ssr:
+        return images, timer
+    ensure_backend()
+    inputs = ChainInputs.from_passes(passes, request.settings)
+    timer.lap("upload")
+    outputs = run_chain(inputs, request.settings, state or ChainState(), timer)
+    scale = 2 if request.settings.half_resolution else 1
+    images.update(
+        final=download(outputs.final_tx),
+        reflection=download(outputs.reflection_tx),
+        history_count=download(outputs.history_count_tx, 1)[..., 0] if outputs.history_count_tx else None,
+        ray_hit=upsample_nearest(download(outputs.ray_hit_tx), scale, (height, width)),
+        ray_dir=upsample_nearest(download(outputs.ray_dir_tx), scale, (height, width)),
+        ray_stats=upsample_nearest(download(outputs.ray_stats_tx), scale, (height, width)))
+    timer.lap("readback")
+    ray_class = download(outputs.ray_stats_tx, 1)[..., 0]
+    traced = np.count_nonzero(ray_class > 0)
+    images["stats"] = {"iterations": outputs.iterations,
+                       "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4)
+                       if traced else 0.0}
     return images, timer
 
 
+def upsample_nearest(array, scale, shape):
+    """Full-resolution view of a traced-resolution buffer (image order): each texel covers its quad."""
+    if scale == 1:
+        return array
+    bottom_up = array[::-1].repeat(scale, axis=0).repeat(scale, axis=1)[:shape[0], :shape[1]]
+    return np.ascontiguousarray(bottom_up[::-1])
+
+
 def pass_channels(images):
-    """The channels of the passes EXR: the inputs, then the SSR intermediates."""
-    passes, hit, reflection = images["passes"], images["hit"], images["reflection"]
+    """The channels of the passes EXR: the inputs, then the SSR intermediates (zero without SSR)."""
+    passes = images["passes"]
+    height, width = passes.depth.shape
+    def intermediate(name, channels):
+        value = images.get(name)
+        return value if value is not None else np.zeros((height, width, channels), np.float32)
+    reflection, ray_hit = intermediate("reflection", 4), intermediate("ray_hit", 4)
+    ray_dir, ray_stats = intermediate("ray_dir", 4), intermediate("ray_stats", 4)
+    history = images.get("history_count")
     channels = {}
     def layer(name, array, components):
         for index, component in enumerate(components):
@@ -111,10 +137,17 @@ def pass_channels(images):
     layer("Specular Color", passes.specular_color, "RGB")
     layer("Specular Direct", passes.specular_direct, "RGB")
     layer("Specular Indirect", passes.specular_indirect, "RGB")
-    layer("SSR Reflection", reflection, "RGB")
+    layer("SSR Reflection", reflection, "RGB")  # premultiplied by confidence: what FG multiplies
     layer("SSR Confidence", reflection[..., 3], "V")
-    layer("SSR Hit", hit, "UV")
-    layer("SSR Hit Distance", hit[..., 2], "V")
+    layer("SSR Hit", ray_hit, "UV")
+    layer("SSR Ray PDF", ray_hit[..., 2], "V")
+    layer("SSR Hit Distance", ray_dir[..., 3], "V")
+    layer("SSR Ray Class", ray_stats[..., 0], "V")  # 0 none, 1 cheap (linear), 2 expensive (Hi-Z)
+    layer("SSR HiZ Level", ray_stats[..., 2], "V")
+    layer("SSR Iterations", ray_stats[..., 1], "V")
+    # Share of each pixel that came from history: 1 - 1 / frames accumulated.
+    layer("SSR History Weight", 1.0 - 1.0 / np.maximum(history, 1.0) if history is not None
+          else np.zeros((height, width), np.float32), "V")
     return channels
 
 
@@ -139,9 +172,10 @@ def run_render(scene, scene_path, request, log=print):
         "samples": request.samples, "settings": asdict(request.settings),
         "blender": bpy.app.version_string, "gpu": None, "frames": [],
     }
+    state = ChainState()
     for frame in frames:
         scene.frame_set(frame)
-        images, timer = render_frame(scene, request)
+        images, timer = render_frame(scene, request, state)
         write_frame(request.out_dir, frame, images, scene)
         timer.lap("write")
         if report["gpu"] is None and request.method == "ssr":
@@ -150,7 +184,7 @@ def run_render(scene, scene_path, request, log=print):
         report["resolution"] = [width, height]
         stages = {stage: round(ms, 3) for stage, ms in timer.milliseconds.items()}
         report["frames"].append({"frame": frame, "stages_ms": stages,
-                                 "total_ms": round(sum(stages.values()), 3)})
+                                 "total_ms": round(sum(stages.values()), 3), **images["stats"]})
         write_json(os.path.join(request.out_dir, "report.json"), report)
         log(f"frame {frame}: {sum(stages.values()):.0f} ms "
             f"({', '.join(f'{k} {v:.0f}' for k, v in stages.items())})")

@@ -3,21 +3,24 @@
 Each function mirrors its shader step for step in float32, so tests can demand
 agreement hit for hit rather than "looks similar".
 """
+import math
+
 import numpy as np
 
 F32 = np.float32
 
 
 def view_positions(depth, clip_to_view):
-    """View-space position of every pixel (image order), as common_lib.glsl view_position()."""
+    """View-space position and incident direction of every pixel (image order), as common_lib.glsl."""
     height, width = depth.shape
     v, u = np.mgrid[0:height, 0:width].astype(F32)
     uv_x = (u + F32(0.5)) / F32(width)
     uv_y = F32(1.0) - (v + F32(0.5)) / F32(height)  # image row 0 is the top: GL uv.y = 1 at top
     ndc = np.stack([uv_x * 2 - 1, uv_y * 2 - 1], axis=-1).astype(F32)
+
     def unproject(z):
-        clip = np.concatenate([ndc, np.full(ndc.shape[:2] + (1,), z, F32), np.ones(ndc.shape[:2] + (1,), F32)], -1)
-        point = clip @ clip_to_view.T.astype(F32)
+        ones = np.ones(ndc.shape[:2] + (1,), F32)
+        point = np.concatenate([ndc, ones * F32(z), ones], -1) @ clip_to_view.T.astype(F32)
         return point[..., :3] / point[..., 3:4]
     origin = unproject(-1.0)
     direction = unproject(1.0) - origin
@@ -25,8 +28,103 @@ def view_positions(depth, clip_to_view):
     return position.astype(F32), (direction / np.linalg.norm(direction, axis=-1, keepdims=True)).astype(F32)
 
 
-def trace_linear(depth, normal_view, roughness, view_to_clip, clip_start, clip_end, settings):
-    """Hits of trace_linear.glsl: (H, W, 4) = (hit uv, distance, confidence), image order.
+class ScreenRay:
+    """screen_ray_lib.glsl: a view-space ray projected to the screen, t in [0, 1]."""
+
+    def __init__(self, origin, direction, view_to_clip, viewport, clip_start, max_distance):
+        ray_length = F32(max_distance)
+        if direction[2] > 0:
+            ray_length = min(ray_length, F32(0.99) * (F32(-clip_start) - origin[2]) / direction[2])
+        end = origin + direction * ray_length
+        h0 = view_to_clip @ np.append(origin, 1).astype(F32)
+        h1 = view_to_clip @ np.append(end, 1).astype(F32)
+        self.k0, self.k1 = F32(1) / h0[3], F32(1) / h1[3]
+        self.q0, self.q1 = origin * self.k0, end * self.k1
+        self.viewport = viewport
+        self.start = (h0[:2] * self.k0 * F32(0.5) + F32(0.5)) * viewport
+        self.delta = (h1[:2] * self.k1 * F32(0.5) + F32(0.5)) * viewport - self.start
+
+    def exit(self):
+        t_exit = F32(1)
+        for axis in range(2):
+            if self.delta[axis] > 0:
+                t_exit = min(t_exit, (self.viewport[axis] - self.start[axis]) / self.delta[axis])
+            elif self.delta[axis] < 0:
+                t_exit = min(t_exit, -self.start[axis] / self.delta[axis])
+        return max(t_exit, F32(0))
+
+    def depth(self, t):
+        return -((F32(1) - t) * self.q0[2] + t * self.q1[2]) / ((F32(1) - t) * self.k0 + t * self.k1)
+
+    def t_at_depth(self, depth):
+        return -(self.q0[2] + depth * self.k0) / ((self.q1[2] - self.q0[2]) + depth * (self.k1 - self.k0))
+
+    def position(self, t):
+        return self.start + self.delta * t
+
+    def view_position(self, t):
+        return ((1 - t) * self.q0 + t * self.q1) / ((1 - t) * self.k0 + t * self.k1)
+
+
+def march_linear(ray, scene_depth, settings, clip_end):
+    """linear_march_lib.glsl: fixed screen-space steps, span-overlap test, binary refinement."""
+    t_exit = ray.exit()
+    major = max(abs(ray.delta[0]), abs(ray.delta[1])) * t_exit
+    steps = min(F32(settings.trace_steps), np.ceil(major / F32(settings.trace_stride)))
+    if steps < 1:
+        return -1.0
+    dt = t_exit / steps
+    ray_front = ray.depth(F32(0))
+    for i in range(1, int(steps) + 1):
+        t = dt * F32(i)
+        ray_back = ray.depth(t)
+        surface = scene_depth(ray.position(t))
+        hit = ray_back > surface and ray_front < surface + F32(settings.thickness) and surface < clip_end
+        ray_front = ray_back
+        if hit:
+            front, back = t - dt, t
+            for _ in range(settings.refine_steps):
+                mid = F32(0.5) * (front + back)
+                if ray.depth(mid) > scene_depth(ray.position(mid)):
+                    back = mid
+                else:
+                    front = mid
+            return back
+    return -1.0
+
+
+def _cell_exit(ray, cell, size):
+    t_cell = F32(1e30)
+    for axis in range(2):
+        if ray.delta[axis] != 0:
+            boundary = (cell[axis] + (1 if ray.delta[axis] > 0 else 0)) * size
+            t_cell = min(t_cell, (F32(boundary) - ray.start[axis]) / ray.delta[axis])
+    return t_cell
+
+
+def march_pixel_walk(ray, scene_depth, settings, clip_end):
+    """Brute force for the Hi-Z tracer: visit every pixel the ray crosses, in order, and stop
+    at the first whose depth span overlaps [depth, depth + thickness] (hiz_march_lib.glsl
+    restricted to level 0)."""
+    t_exit = ray.exit()
+    major = max(abs(ray.delta[0]), abs(ray.delta[1]))
+    nudge = F32(1.0 / 256.0) / major if major > 0 else F32(1)
+    t = _cell_exit(ray, np.floor(ray.start), 1) + nudge
+    while t < t_exit:
+        cell = np.floor(ray.position(t))
+        t_next = min(_cell_exit(ray, cell, 1), t_exit)
+        depth_in, depth_out = ray.depth(t), ray.depth(t_next)
+        surface = scene_depth(cell + F32(0.5))
+        if (max(depth_in, depth_out) >= surface and min(depth_in, depth_out) < surface + F32(settings.thickness)
+                and surface < clip_end):
+            t_surface = ray.t_at_depth(surface) if depth_out > depth_in else t
+            return min(max(t_surface, t), t_next)
+        t = t_next + nudge
+    return -1.0
+
+
+def trace_mirror_rays(depth, normal_view, roughness, view_to_clip, clip_start, clip_end, settings, march):
+    """trace.glsl with mirror rays at full resolution: (H, W, 4) = (hit uv, distance, confidence).
 
     `normal_view` is already in view space (the tests use an identity view matrix).
     """
@@ -38,82 +136,62 @@ def trace_linear(depth, normal_view, roughness, view_to_clip, clip_start, clip_e
     depth_gl = depth[::-1]  # texel (x, y) with y up
 
     def scene_depth(px):
-        texel = np.clip(px.astype(np.int32), 0, np.array([width, height]) - 1)
+        texel = np.clip(np.floor(px).astype(np.int32), 0, np.array([width, height]) - 1)
         return depth_gl[texel[1], texel[0]]
 
     for row in range(height):
         for col in range(width):
-            d = depth[row, col]
-            if d >= clip_end or roughness[row, col] > settings.max_roughness:
+            if depth[row, col] >= clip_end or roughness[row, col] > settings.max_roughness:
                 continue
             origin, incident = positions[row, col], incidents[row, col]
             normal = normal_view[row, col] / np.linalg.norm(normal_view[row, col])
             direction = (incident - 2 * np.dot(normal, incident) * normal).astype(F32)
             if np.dot(direction, normal) <= 0:
                 continue
-            ray_length = F32(settings.max_distance)
-            if direction[2] > 0:
-                ray_length = min(ray_length, F32(0.99) * (F32(-clip_start) - origin[2]) / direction[2])
-            end = origin + direction * ray_length
-            h0 = view_to_clip @ np.append(origin, 1).astype(F32)
-            h1 = view_to_clip @ np.append(end, 1).astype(F32)
-            k0, k1 = F32(1) / h0[3], F32(1) / h1[3]
-            q0, q1 = origin * k0, end * k1
-            start = (h0[:2] * k0 * F32(0.5) + F32(0.5)) * viewport
-            delta = (h1[:2] * k1 * F32(0.5) + F32(0.5)) * viewport - start
-            t_exit = F32(1)
-            for axis in range(2):
-                if delta[axis] > 0:
-                    t_exit = min(t_exit, (viewport[axis] - start[axis]) / delta[axis])
-                elif delta[axis] < 0:
-                    t_exit = min(t_exit, -start[axis] / delta[axis])
-            t_exit = max(t_exit, F32(0))
-            major = max(abs(delta[0]), abs(delta[1])) * t_exit
-            steps = min(F32(settings.trace_steps), np.ceil(major / F32(settings.trace_stride)))
-            if steps < 1:
+            ray = ScreenRay(origin, direction, view_to_clip, viewport, clip_start, settings.max_distance)
+            t = march(ray, scene_depth, settings, clip_end)
+            if t < 0:
                 continue
-            dt = t_exit / steps
-
-            def ray_depth(t):
-                return -((F32(1) - t) * q0[2] + t * q1[2]) / ((F32(1) - t) * k0 + t * k1)
-
-            hit_t = -1.0
-            ray_front = ray_depth(F32(0))
-            for i in range(1, int(steps) + 1):
-                t = dt * F32(i)
-                ray_back = ray_depth(t)
-                surface = scene_depth(start + delta * t)
-                hit = ray_back > surface and ray_front < surface + F32(settings.thickness)
-                ray_front = ray_back
-                if hit:
-                    front, back = t - dt, t
-                    for _ in range(settings.refine_steps):
-                        mid = F32(0.5) * (front + back)
-                        if ray_depth(mid) > scene_depth(start + delta * mid):
-                            back = mid
-                        else:
-                            front = mid
-                    hit_t = back
-                    break
-            if hit_t < 0:
-                continue
-            hit_px = start + delta * hit_t
+            hit_px = ray.position(t)
             hit_uv = hit_px / viewport
-            hit_position = ((1 - hit_t) * q0 + hit_t * q1) / ((1 - hit_t) * k0 + hit_t * k1)
-            hit_texel = np.clip(hit_px.astype(np.int32), 0, np.array([width, height]) - 1)
-            hit_normal = normal_view[::-1][hit_texel[1], hit_texel[0]]
-            if np.dot(hit_normal, direction) > 0:
+            hit_texel = np.clip(np.floor(hit_px).astype(np.int32), 0, np.array([width, height]) - 1)
+            if np.dot(normal_view[::-1][hit_texel[1], hit_texel[0]], direction) > 0:
                 continue
             edge = min(hit_uv[0], 1 - hit_uv[0], hit_uv[1], 1 - hit_uv[1])
             fade = np.clip(edge / settings.border_fade, 0, 1) if settings.border_fade > 0 else 1.0
-            towards_camera = np.dot(direction, -incident)
             if settings.camera_facing_fade > 0:
-                fade *= np.clip((1 - towards_camera) / settings.camera_facing_fade, 0, 1)
-            result[row, col] = (hit_uv[0], hit_uv[1], np.linalg.norm(hit_position - origin), fade)
+                fade *= np.clip((1 - np.dot(direction, -incident)) / settings.camera_facing_fade, 0, 1)
+            result[row, col] = (hit_uv[0], hit_uv[1], np.linalg.norm(ray.view_position(t) - origin), fade)
     return result
 
 
+def min_pyramid(depth_gl):
+    """pyramid_downsample.glsl with REDUCE_MIN: levels down to 1x1, ceil halving (GL row order)."""
+    levels = [depth_gl]
+    while max(levels[-1].shape) > 1:
+        source = levels[-1]
+        height, width = math.ceil(source.shape[0] / 2), math.ceil(source.shape[1] / 2)
+        padded = np.full((height * 2, width * 2), np.inf, F32)
+        padded[:source.shape[0], :source.shape[1]] = source
+        levels.append(padded.reshape(height, 2, width, 2).min(axis=(1, 3)))
+    return levels
+
+
+def ggx_normal_cdf(cos_theta_h, alpha):
+    """P(angle between h and n < theta) for GGX normals weighted by cos: tan^2 / (alpha^2 + tan^2)."""
+    tan2 = (1 - cos_theta_h ** 2) / np.maximum(cos_theta_h ** 2, 1e-12)
+    return tan2 / (alpha ** 2 + tan2)
+
+
+def visible_normal_pdf(n_dot_v, n_dot_h, alpha):
+    """ggx_lib.glsl visible_normal_pdf: G1(v) D(h) / (4 n.v)."""
+    a2 = alpha * alpha
+    d = a2 / (np.pi * (n_dot_h ** 2 * (a2 - 1) + 1) ** 2)
+    g1 = 2 * n_dot_v / (n_dot_v + np.sqrt(a2 + (1 - a2) * n_dot_v ** 2))
+    return g1 * d / (4 * n_dot_v)
+
+
 def composite(combined, specular_color, specular_indirect, reflection):
-    """composite.glsl."""
-    replaced = specular_color * reflection[..., 3:4] * (reflection[..., :3] - specular_indirect)
+    """composite.glsl: reflection is (premultiplied radiance, confidence)."""
+    replaced = specular_color * (reflection[..., :3] - reflection[..., 3:4] * specular_indirect)
     return np.concatenate([np.maximum(combined[..., :3] + replaced, 0), combined[..., 3:4]], -1)

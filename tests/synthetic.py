@@ -57,11 +57,11 @@ def raycast(width, height, projection, boxes, floor_y=None, far=100.0):
     return depth.astype(np.float32), normal.astype(np.float32)
 
 
-def corridor(width=80, height=48):
+def corridor(width=80, height=48, pole_width=0.1):
     """Floor, back wall, a box and a thin pole: reflections of every kind on a mirror floor."""
     projection = perspective(width, height)
     boxes = [((-3.0, -1.0, -9.0), (3.0, 3.0, -8.0)),      # back wall
              ((-1.6, -1.0, -5.5), (-0.4, 0.2, -4.5)),     # box on the floor
-             ((0.9, -1.0, -4.05), (1.0, 1.2, -3.95))]     # thin pole
+             ((0.9, -1.0, -4.05), (0.9 + pole_width, 1.2, -3.95))]  # thin pole
     depth, normal = raycast(width, height, projection, boxes, floor_y=-1.0)
     return depth, normal, projection

@@ -1,12 +1,15 @@
-/* Helpers shared by the passes: view-space reconstruction from the depth pass.
+/* Helpers shared by the passes: view-space reconstruction from the depth pass,
+ * hashing, and pyramid atlas access.
  * The depth pass holds distance along the view axis (positive), so a view-space
  * position is the point on the pixel's camera ray at z = -depth; this works for
  * perspective and orthographic cameras alike. */
 
-/* The texel under a screen position in pixels, kept inside the traced target. */
+#define M_PI 3.14159265358979
+
+/* The texel under a screen position in full-resolution pixels, kept on screen. */
 ivec2 texel_at(vec2 position_px)
 {
-  return clamp(ivec2(position_px), ivec2(0), ivec2(params.viewport.xy) - 1);
+  return clamp(ivec2(floor(position_px)), ivec2(0), ivec2(params.viewport.xy) - 1);
 }
 
 bool is_background(float depth)
@@ -41,4 +44,39 @@ vec3 view_incident(vec2 uv)
 vec3 view_normal(vec3 world_normal)
 {
   return normalize(mat3(params.world_to_view) * world_normal);
+}
+
+/* Size of one pixel, in view units, on a surface at this depth. */
+float pixel_footprint(float depth)
+{
+  bool orthographic = params.view_to_clip[3][3] == 1.0;
+  return 2.0 / (params.view_to_clip[1][1] * params.viewport.y) * (orthographic ? 1.0 : depth);
+}
+
+/* PCG hash: decorrelates pixels (Cranley-Patterson rotation of the Halton points). */
+uint pcg_hash(uint value)
+{
+  uint state = value * 747796405u + 2891336453u;
+  uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+  return (word >> 22u) ^ word;
+}
+
+vec2 pixel_noise(ivec2 pixel)
+{
+  uint seed = pcg_hash(uint(pixel.x) + pcg_hash(uint(pixel.y)));
+  return vec2(seed & 0xffffu, seed >> 16u) / 65536.0;
+}
+
+/* One texel of a pyramid level packed in an atlas (level rectangles from params). */
+vec4 atlas_fetch(sampler2D atlas, vec4 level_rect, ivec2 texel)
+{
+  ivec2 clamped = clamp(texel, ivec2(0), ivec2(level_rect.zw) - 1);
+  return texelFetch(atlas, ivec2(level_rect.xy) + clamped, 0);
+}
+
+/* Bilinear sample of one level of an atlas, never bleeding into its neighbours. */
+vec4 atlas_sample(sampler2D atlas, vec4 level_rect, vec2 uv)
+{
+  vec2 position = clamp(uv * level_rect.zw, vec2(0.5), level_rect.zw - 0.5);
+  return textureLod(atlas, (level_rect.xy + position) / vec2(textureSize(atlas, 0)), 0.0);
 }

@@ -1,16 +1,16 @@
 /* Composite: put traced reflections where the engine had only probe/world reflections.
  *
  * Inputs:  combined_tx (the engine's image), specular_color_tx (its pre-integrated
- *          specular reflectance, FG), specular_indirect_tx (the reflected light
- *          that came from probes and the world), reflection_tx (SSR radiance and
- *          confidence).
+ *          specular reflectance, the FG term), specular_indirect_tx (the reflected
+ *          light that came from probes and the world), reflection_tx (SSR:
+ *          premultiplied radiance, confidence).
  * Output:  final_img.
  *
  * The engine's image is a sum of passes:
  *   combined = diffuse_color * diffuse_light + specular_color * (lamp_specular + indirect_specular)
  *            + emission + environment (+ transmission, volumes...).
  * SSR estimates indirect specular light, so with confidence c:
- *   final = combined + specular_color * c * (ssr - indirect_specular).
+ *   final = combined + specular_color * (c * ssr - c * indirect_specular).
  * Diffuse light, emission, the world seen directly and lamp highlights pass
  * through untouched; where c is 0 the probe/world reflection stays. */
 
@@ -21,6 +21,6 @@ void main()
   vec4 reflection = texelFetch(reflection_tx, texel, 0);
   vec3 specular_color = texelFetch(specular_color_tx, texel, 0).rgb;
   vec3 indirect = texelFetch(specular_indirect_tx, texel, 0).rgb;
-  vec3 replaced = specular_color * reflection.a * (reflection.rgb - indirect);
+  vec3 replaced = specular_color * (reflection.rgb - reflection.a * indirect);
   final_img = vec4(max(combined.rgb + replaced, vec3(0.0)), combined.a);
 }

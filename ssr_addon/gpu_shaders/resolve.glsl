@@ -1,19 +1,97 @@
-/* Colour resolve ("use color of intersection point as reflection color").
+/* Colour resolve at full resolution with neighbour ray reuse ("Weighing
+ * Neighbors", "Sparse Ray Tracing" and "Filtered Importance Sampling" slides).
  *
- * Inputs:  hit_tx (from the trace), radiance_tx (the lit scene), roughness_tx.
- * Output:  reflection_img = (reflected radiance, confidence).
+ * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
+ *          color_tx (colour pyramid atlas; level 0 is the lit scene).
+ * Outputs: reflection_img     = (reflected radiance * confidence, confidence),
+ *          reflection_hit_img = (mean hit distance, weight sum, rays reused, 0).
  *
- * Confidence fades to zero over the top fifth of [0, max_roughness] so the
- * switch from SSR to the probe/world reflection leaves no seam. */
+ * Each pixel reuses the rays of its own and neighbouring traced texels with the
+ * ratio estimator  L = sum(L_k f_s(l_k) cos / p_k) / sum(f_s(l_k) cos / p_k),
+ * where l_k runs from this pixel to ray k's hit and p_k is the pdf ray k was
+ * drawn with. The FG factor is applied by the composite. Rays that missed
+ * count in the denominator only through the confidence: confidence is the
+ * share of the BRDF weight whose rays found a trustworthy hit. */
+
+const ivec2 NEIGHBOURS[9] = ivec2[9](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(1, 1), ivec2(-1, 0),
+                                     ivec2(0, -1), ivec2(-1, 1), ivec2(1, -1), ivec2(-1, -1));
+
+/* Colour of a ray's hit as a cone: the pyramid level whose texel matches the
+ * patch the sample stands for, 1 / (N pdf) steradians seen at the hit distance. */
+vec3 hit_radiance(vec2 hit_uv, float hit_distance, float pdf, float ray_count)
+{
+  float level = 0.0;
+  if (params.stages.z > 0.0 && params.stages.x > 0.0) {
+    float hit_depth = texelFetch(depth_tx, texel_at(hit_uv * params.viewport.xy), 0).r;
+    float patch_area = hit_distance * hit_distance / (ray_count * pdf);
+    float texel_area = pow(pixel_footprint(hit_depth), 2.0);
+    level = clamp(0.5 * log2(patch_area / texel_area), 0.0, params.temporal.w - 1.0);
+  }
+  int lower = int(floor(level));
+  int upper = min(lower + 1, int(params.temporal.w) - 1);
+  vec3 a = atlas_sample(color_tx, params.color_level[lower], hit_uv).rgb;
+  vec3 b = atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb;
+  return mix(a, b, level - float(lower));
+}
 
 void main()
 {
-  ivec2 texel = ivec2(gl_FragCoord.xy);
-  vec4 hit = texelFetch(hit_tx, texel, 0);
+  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  reflection_img = vec4(0.0);
+  reflection_hit_img = vec4(0.0);
+  float depth = texelFetch(depth_tx, pixel, 0).r;
+  float roughness = texelFetch(roughness_tx, pixel, 0).r;
   float max_roughness = params.shaping.w;
-  float roughness = texelFetch(roughness_tx, texel, 0).r;
+  if (is_background(depth) || roughness > max_roughness) {
+    return;
+  }
+  vec2 uv = (vec2(pixel) + 0.5) * params.viewport.zw;
+  vec3 position = view_position(uv, depth);
+  vec3 to_eye = -view_incident(uv);
+  vec3 normal = view_normal(texelFetch(normal_tx, pixel, 0).xyz);
+  float alpha = ggx_alpha(roughness);
+
+  int scale = int(params.trace_viewport.z);
+  ivec2 own_texel = pixel / scale;
+  /* Mirror the neighbour pattern towards this pixel's side of its quad, so the
+   * first four rays are the four nearest. */
+  ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
+  ivec2 trace_size = ivec2(params.trace_viewport.xy);
+  int ray_count = int(params.stages.y);
+
+  vec3 radiance_sum = vec3(0.0);
+  float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;
+  for (int k = 0; k < ray_count; k++) {
+    ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
+    vec4 hit = texelFetch(ray_hit_tx, texel, 0);
+    if (hit.z <= 0.0) {
+      continue; /* no ray was traced there (sky, rough or back-facing pixel) */
+    }
+    vec4 ray = texelFetch(ray_dir_tx, texel, 0);
+    vec3 direction = ray.xyz;
+    float hit_distance = 0.0;
+    if (hit.w > 0.0) {
+      float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport.xy), 0).r;
+      vec3 to_hit = view_position(hit.xy, hit_depth) - position;
+      hit_distance = length(to_hit);
+      direction = to_hit / max(hit_distance, 1e-6);
+    }
+    float weight = ggx_brdf_cos(normal, to_eye, direction, alpha) / hit.z;
+    weight_sum += weight;
+    if (hit.w > 0.0 && weight > 0.0) {
+      float hit_weight = weight * hit.w;
+      radiance_sum += hit_weight * hit_radiance(hit.xy, hit_distance, hit.z, float(ray_count));
+      hit_weight_sum += hit_weight;
+      distance_sum += hit_weight * hit_distance;
+    }
+  }
+  if (hit_weight_sum <= 0.0 || weight_sum <= 0.0) {
+    return;
+  }
+  /* Confidence fades to zero over the top fifth of [0, max_roughness] so the
+   * switch to the probe/world reflection leaves no seam. */
   float roughness_fade = 1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness);
-  float confidence = hit.w * roughness_fade;
-  vec3 radiance = confidence > 0.0 ? textureLod(radiance_tx, hit.xy, 0.0).rgb : vec3(0.0);
-  reflection_img = vec4(radiance, confidence);
+  float confidence = hit_weight_sum / weight_sum * roughness_fade;
+  reflection_img = vec4(radiance_sum / hit_weight_sum * confidence, confidence);
+  reflection_hit_img = vec4(distance_sum / hit_weight_sum, weight_sum, float(ray_count), 0.0);
 }

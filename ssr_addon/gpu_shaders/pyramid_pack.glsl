@@ -1,0 +1,9 @@
+/* Copy one pyramid level into its rectangle of the atlas, so a tracer can pick
+ * any level from one sampler (Python-made textures have a single mip level).
+ *
+ * Input: level_tx. Output: atlas_img, drawn with the viewport on the level's rectangle. */
+
+void main()
+{
+  atlas_img = texelFetch(level_tx, ivec2(gl_FragCoord.xy) - level_offset, 0);
+}

@@ -1,0 +1,90 @@
+/* Ray generation and tracing, one ray per traced texel ("SSR in Frostbite":
+ * rays by roughness class, importance-sampled, traced at half resolution).
+ *
+ * Inputs:  depth_tx (view depth), normal_tx (world normal), roughness_tx, hiz_tx (min-depth atlas).
+ * Outputs: ray_hit_img   = (hit uv, pdf of the ray direction, confidence); pdf 0: no ray traced,
+ *                          confidence 0: traced but no trustworthy hit.
+ *          ray_dir_img   = (view-space ray direction, hit distance).
+ *          ray_stats_img = (ray class: 0 none, 1 cheap, 2 expensive; march iterations;
+ *                           highest Hi-Z level reached; 0).
+ *
+ * With half-resolution tracing each texel traces from one pixel of its 2x2
+ * quad, a different one every frame. Smooth pixels (roughness below the
+ * budget's threshold) get expensive Hi-Z rays, the rest cheap linear rays. */
+
+ivec2 ray_origin_pixel(ivec2 texel)
+{
+  int scale = int(params.trace_viewport.z);
+  /* The quad pixel rotates through a 2x2 pattern over four frames. */
+  int phase = int(params.frame.x) & 3;
+  ivec2 offset = scale > 1 ? ivec2(phase & 1, (phase >> 1) ^ (phase & 1)) : ivec2(0);
+  return min(texel * scale + offset, ivec2(params.viewport.xy) - 1);
+}
+
+bool is_expensive(float roughness, ivec2 pixel)
+{
+  float threshold = params.frame.y;
+  /* Ties at the threshold (large areas of one roughness) share the rest of the budget. */
+  return roughness < threshold || (roughness == threshold && pixel_noise(pixel).x < params.frame.z);
+}
+
+void main()
+{
+  ray_hit_img = vec4(0.0);
+  ray_dir_img = vec4(0.0);
+  ray_stats_img = vec4(0.0);
+  ivec2 pixel = ray_origin_pixel(ivec2(gl_FragCoord.xy));
+  float depth = texelFetch(depth_tx, pixel, 0).r;
+  float roughness = texelFetch(roughness_tx, pixel, 0).r;
+  if (is_background(depth) || roughness > params.shaping.w) {
+    return;
+  }
+  vec2 uv = (vec2(pixel) + 0.5) * params.viewport.zw;
+  vec3 origin = view_position(uv, depth);
+  vec3 incident = view_incident(uv);
+  vec3 normal = view_normal(texelFetch(normal_tx, pixel, 0).xyz);
+  vec3 to_eye = -incident;
+  float n_dot_v = dot(normal, to_eye);
+  if (n_dot_v <= 0.0) {
+    return; /* the shading normal faces away from the camera */
+  }
+
+  vec3 direction;
+  float pdf;
+  if (params.stages.x > 0.0) {
+    float alpha = ggx_alpha(roughness);
+    mat3 frame = tangent_frame(normal);
+    vec3 half_vector = frame * sample_visible_normal(transpose(frame) * to_eye, alpha,
+                                                     sample_point(pixel, params.frame.x));
+    direction = reflect(incident, half_vector);
+    pdf = visible_normal_pdf(n_dot_v, max(dot(normal, half_vector), 0.0), alpha);
+  }
+  else {
+    direction = reflect(incident, normal);
+    pdf = 1.0; /* mirror rays: a constant, so the resolve weights by the BRDF alone */
+  }
+  ray_dir_img.xyz = direction;
+  ray_hit_img.z = pdf;
+  if (dot(direction, normal) <= 0.0) {
+    return; /* sampled below the surface: a ray with no light */
+  }
+
+  bool expensive = params.frame.w > 0.0 && is_expensive(roughness, pixel);
+  ray_stats_img.x = expensive ? 2.0 : 1.0;
+  ScreenRay ray = project_ray(origin, direction);
+  float iterations, highest_level = 0.0;
+  float t = expensive ? march_hiz(ray, iterations, highest_level) : march_linear(ray, iterations);
+  ray_stats_img.yz = vec2(iterations, highest_level);
+  if (t < 0.0) {
+    return;
+  }
+  vec2 hit_px = ray_position_px(ray, t);
+  vec2 hit_uv = hit_px * params.viewport.zw;
+  vec3 hit_normal = view_normal(texelFetch(normal_tx, texel_at(hit_px), 0).xyz);
+  if (dot(hit_normal, direction) > 0.0) {
+    return; /* back face: the ray hit the far side of a surface */
+  }
+  ray_dir_img.w = distance(origin, ray_view_position(ray, t));
+  ray_hit_img.xy = hit_uv;
+  ray_hit_img.w = border_fade(hit_uv) * camera_facing_fade(incident, direction);
+}

@@ -1,0 +1,26 @@
+"""Run the chain on synthetic G-buffers (identity view matrix: view space is world space)."""
+import numpy as np
+
+CLIP_START, CLIP_END = 0.1, 100.0
+
+
+def run_synthetic_chain(depth, normal, roughness, projection, settings, radiance=None, state=None,
+                        ray_budget=(1.0, 1.0)):
+    """Run the whole chain; returns (outputs as numpy in image order, ChainOutputs)."""
+    from ssr_addon.chain import ChainInputs, ChainState, run_chain
+    from ssr_addon.gpu_backend import download, upload
+    height, width = depth.shape
+    if radiance is None:
+        radiance = np.zeros((height, width, 4), np.float32)
+    radiance_tx = upload(radiance)
+    zeros_tx = upload(np.zeros((height, width, 4), np.float32))
+    ones_tx = upload(np.ones((height, width, 4), np.float32))
+    inputs = ChainInputs(
+        radiance_tx=radiance_tx, depth_tx=upload(depth), normal_tx=upload(normal),
+        roughness_tx=upload(roughness), combined_tx=radiance_tx, specular_color_tx=ones_tx,
+        specular_indirect_tx=zeros_tx, view_matrix=np.eye(4, dtype=np.float32),
+        projection_matrix=projection, clip_start=CLIP_START, clip_end=CLIP_END, ray_budget=ray_budget)
+    outputs = run_chain(inputs, settings, state or ChainState())
+    arrays = {name: download(getattr(outputs, f"{name}_tx"))
+              for name in ("ray_hit", "ray_dir", "ray_stats", "reflection", "final")}
+    return arrays, outputs
