@@ -165,11 +165,15 @@ def run_chain(inputs, settings, state, timer=None):
     iterations = 1 if use_history or not settings.use_temporal else settings.accumulate_frames
     if not use_history:
         state.reset_history()
-    for _ in range(iterations):
+    # An animation keeps an exponential window of 1 / (1 - weight) frames; a still
+    # averages every one of its iterations.
+    history_frames = max(1.0 / (1.0 - settings.temporal_weight), iterations)
+    for iteration in range(iterations):
         has_history = state.history is not None
+        history_mode = 0 if not has_history else (2 if iteration > 0 else 1)
         previous = state.previous_world_to_clip if has_history else world_to_clip
         params = pack_params(inputs.camera, previous, size, trace_size, state.frame_index,
-                             inputs.ray_budget, hiz_rects, color_rects, has_history, settings)
+                             inputs.ray_budget, hiz_rects, color_rects, history_mode, history_frames, settings)
         blocks = (("params", params),)
         ray_hit_tx = pool.get("ray_hit", trace_size)
         ray_dir_tx = pool.get("ray_dir", trace_size)

@@ -96,11 +96,13 @@ def _level_rects(rects):
 
 
 def pack_params(camera, previous_world_to_clip, size, trace_size, frame_index, ray_budget,
-                hiz_rects, color_rects, has_history, settings):
+                hiz_rects, color_rects, history_mode, history_frames, settings):
     """The std140 bytes of SSRParams (see ssr_params_lib.glsl) as a GPU uniform buffer.
 
     camera: (world_to_view, view_to_clip, clip_start, clip_end); ray_budget:
-    (expensive roughness threshold, tie fraction).
+    (expensive roughness threshold, tie fraction); history_mode: 0 none, 1 clamped
+    (animation), 2 unclamped (a still's iterations); history_frames: most frames
+    the temporal filter averages.
     """
     world_to_view, view_to_clip, clip_start, clip_end = camera
     width, height = size
@@ -118,7 +120,7 @@ def pack_params(camera, previous_world_to_clip, size, trace_size, frame_index, r
         [settings.refine_steps, settings.border_fade, settings.camera_facing_fade, settings.max_roughness],
         [float(settings.use_importance_sampling), settings.resolve_samples, float(settings.use_cone_filter),
          settings.hiz_max_iterations],
-        [settings.temporal_weight, float(settings.temporal_reprojection == "hit"), float(has_history),
+        [history_frames, float(settings.temporal_reprojection == "hit"), history_mode,
          len(color_rects)],
         _level_rects(hiz_rects),
         _level_rects(color_rects),

@@ -65,3 +65,21 @@ def corridor(width=80, height=48, pole_width=0.1):
              ((0.9, -1.0, -4.05), (0.9 + pole_width, 1.2, -3.95))]  # thin pole
     depth, normal = raycast(width, height, projection, boxes, floor_y=-1.0)
     return depth, normal, projection
+
+
+def orthographic(width, height, scale=2.0, near=0.1, far=100.0):
+    """An orthographic camera seeing `scale` view units across the image height."""
+    half_height = scale / 2
+    half_width = half_height * width / height
+    return np.array([
+        [1 / half_width, 0, 0, 0],
+        [0, 1 / half_height, 0, 0],
+        [0, 0, -2 / (far - near), -(far + near) / (far - near)],
+        [0, 0, 0, 1]], dtype=np.float32)
+
+
+def facing_plane(width=128, height=128, depth=5.0):
+    """A plane facing an orthographic camera: every pixel sees it head on (n = v)."""
+    normal = np.zeros((height, width, 3), np.float32)
+    normal[..., 2] = 1.0
+    return np.full((height, width), depth, np.float32), normal, orthographic(width, height)

@@ -16,7 +16,8 @@ struct SSRParams {
   vec4 march;          /* thickness, max_distance, trace_stride (px), trace_steps */
   vec4 shaping;        /* refine_steps, border_fade, camera_facing_fade, max_roughness */
   vec4 stages;         /* use_importance_sampling, resolve_samples, use_cone_filter, hiz_max_iterations */
-  vec4 temporal;       /* temporal_weight, reproject the hit (1) or the surface (0), has history, colour levels */
+  vec4 temporal;       /* most frames averaged, reproject the hit (1) or the surface (0),
+                        * history (0 none, 1 clamped to this frame, 2 a still's own: unclamped), colour levels */
   vec4 hiz_level[MAX_PYRAMID_LEVELS];   /* min-depth pyramid atlas: x, y offset, width, height */
   vec4 color_level[MAX_PYRAMID_LEVELS]; /* colour pyramid atlas, likewise */
 };

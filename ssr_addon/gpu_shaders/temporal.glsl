@@ -11,7 +11,8 @@
  *
  * History is clamped to the range of this frame's 3x3 neighbourhood, which
  * rejects stale history (disocclusion, moving objects) at the cost of some
- * noise. Each pixel averages up to 1 / (1 - temporal_weight) frames. */
+ * noise; a still's iterations share one camera and scene, so theirs is not. Each pixel averages up to params.temporal.x frames: 1 / (1 - temporal_weight)
+ * in an animation, all the iterations of an accumulated still. */
 
 void main()
 {
@@ -39,18 +40,21 @@ void main()
   if (any(lessThan(previous_uv, vec2(0.0))) || any(greaterThan(previous_uv, vec2(1.0)))) {
     return; /* off screen last frame: no history */
   }
-  vec4 low = current, high = current;
-  for (int y = -1; y <= 1; y++) {
-    for (int x = -1; x <= 1; x++) {
-      ivec2 neighbour = clamp(pixel + ivec2(x, y), ivec2(0), ivec2(params.viewport.xy) - 1);
-      vec4 value = texelFetch(reflection_tx, neighbour, 0);
-      low = min(low, value);
-      high = max(high, value);
+  vec4 history = textureLod(history_tx, previous_uv, 0.0);
+  if (params.temporal.z < 2.0) {
+    vec4 low = current, high = current;
+    for (int y = -1; y <= 1; y++) {
+      for (int x = -1; x <= 1; x++) {
+        ivec2 neighbour = clamp(pixel + ivec2(x, y), ivec2(0), ivec2(params.viewport.xy) - 1);
+        vec4 value = texelFetch(reflection_tx, neighbour, 0);
+        low = min(low, value);
+        high = max(high, value);
+      }
     }
+    history = clamp(history, low, high);
   }
-  vec4 history = clamp(textureLod(history_tx, previous_uv, 0.0), low, high);
   float history_count = textureLod(history_count_tx, previous_uv, 0.0).x;
-  float count = min(history_count + 1.0, 1.0 / (1.0 - params.temporal.x));
+  float count = min(history_count + 1.0, params.temporal.x);
   filtered_img = mix(history, current, 1.0 / count);
   count_img = vec4(count, 0.0, 0.0, 0.0);
 }
