@@ -2,6 +2,7 @@
 so an interrupted run leaves only whole files behind."""
 import json
 import os
+from contextlib import contextmanager
 
 import bpy
 import numpy as np
@@ -21,8 +22,24 @@ def _discard(partial):
         os.remove(partial)
 
 
+@contextmanager
+def written_together(paths):
+    """Yield temporary names for PATHS; when the block succeeds rename them, in order, to
+    PATHS; when it fails remove them. A reader never sees a half-written file."""
+    partials = [_partial_name(path) for path in paths]
+    try:
+        yield partials
+        for partial, path in zip(partials, paths):
+            os.replace(partial, path)
+    finally:
+        for partial in partials:
+            _discard(partial)
+
+
 def write_exr(path, channels):
     """Write {channel name: (H, W) float32} as one single-part float EXR, channels in the given order.
+
+    Writes PATH directly: callers go through `written_together`.
 
     Names of the form "Layer.C" make it a layered EXR that Blender and
     compositing packages read as passes.
@@ -33,17 +50,13 @@ def write_exr(path, channels):
     spec = oiio.ImageSpec(width, height, len(names), "float")
     spec.channelnames = tuple(names)
     spec.attribute("compression", "zip")
-    partial = _partial_name(path)
     output = oiio.ImageOutput.create("openexr")
-    try:
-        if output is None or not output.open(partial, spec):
-            raise SSRError(f"cannot write {path}: {oiio.geterror() or (output and output.geterror())}")
-        if not output.write_image(np.ascontiguousarray(pixels)):
-            raise SSRError(f"cannot write {path}: {output.geterror()}")
-        output.close()
-        os.replace(partial, path)
-    finally:
-        _discard(partial)
+    if output is None or not output.open(path, spec):
+        raise SSRError(f"cannot write {path}: {oiio.geterror() or (output and output.geterror())}")
+    written = output.write_image(np.ascontiguousarray(pixels))
+    output.close()
+    if not written:
+        raise SSRError(f"cannot write {path}: {output.geterror()}")
 
 
 def write_rgba_exr(path, rgba):
@@ -54,7 +67,6 @@ def write_display_png(path, rgba, scene):
     """8-bit PNG through the scene's view transform, look, exposure and gamma (as F12 saves it)."""
     height, width = rgba.shape[:2]
     image = bpy.data.images.new("ssr_display", width, height, alpha=True, float_buffer=True)
-    partial = _partial_name(path)
     try:
         image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], dtype=np.float32).ravel())
         with TemporaryChanges() as changes:
@@ -63,24 +75,17 @@ def write_display_png(path, rgba, scene):
             changes.set(settings, "file_format", "PNG")
             changes.set(settings, "color_mode", "RGBA")
             changes.set(settings, "color_depth", "8")
-            image.save_render(partial, scene=scene)
-        os.replace(partial, path)
+            image.save_render(path, scene=scene)
     except RuntimeError as error:
         raise SSRError(f"cannot write {path}: {str(error).strip()}") from None
     finally:
         bpy.data.images.remove(image)
-        _discard(partial)
 
 
 def write_json(path, data):
-    partial = _partial_name(path)
-    try:
-        with open(partial, "w", encoding="utf-8") as stream:
-            json.dump(data, stream, indent=2, sort_keys=False)
-            stream.write("\n")
-        os.replace(partial, path)
-    finally:
-        _discard(partial)
+    with written_together([path]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
+        json.dump(data, stream, indent=2)
+        stream.write("\n")
 
 
 def prepare_output_folder(folder):

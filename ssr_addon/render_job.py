@@ -3,9 +3,9 @@
 Shared by the command line and the operators: everything here takes the
 scene and a RenderRequest, never bpy.context.
 """
+import json
 import os
 import re
-import time
 from dataclasses import asdict, dataclass, field
 
 import bpy
@@ -14,15 +14,24 @@ import numpy as np
 from .chain import ChainInputs, ChainState, run_chain
 from .errors import SSRError
 from .gpu_backend import StageTimer, describe_gpu, download, ensure_backend
-from .outputs import prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr
+from .outputs import (prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr,
+                      written_together)
 from .params import ChainSettings
 from .passes import ENGINES, render_passes
+from .progress import FrameProgress
 from .scene_io import require_camera
 
 # ssr: this project; none: probe/world reflections only; cycles: the path-traced
 # reference; eevee-rt / eevee-rt-high: EEVEE's own screen-space ray tracing.
 METHODS = ("ssr", "none", "cycles", "eevee-rt", "eevee-rt-high")
 EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}
+OUTPUT_SUFFIXES = (".exr", ".png", ".passes.exr")
+# Frames re-rendered (not written) before the first missing frame of a resumed run, so
+# its temporal history is as warm as an uninterrupted run's (the filter averages ~10).
+RESUME_WARMUP_FRAMES = 8
+# Halton indices per frame: a frame's random numbers depend on its number alone, so a
+# resumed run draws the same rays as an uninterrupted one.
+HALTON_INDICES_PER_FRAME = 256
 
 
 @dataclass
@@ -34,6 +43,8 @@ class RenderRequest:
     frames: tuple = None         # (first, last) inclusive, or the scene's current frame
     samples: int = None          # EEVEE TAA samples / Cycles samples; engine default if None
     settings: ChainSettings = field(default_factory=ChainSettings)
+    on_error: str = "stop"       # a frame that fails: "stop" the run or "skip" to the next frame
+    resume: bool = True          # keep complete frames already in out_dir
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -46,6 +57,8 @@ class RenderRequest:
             self.engine = "eevee"
         if self.samples is not None and self.samples < 1:
             raise SSRError(f"--samples must be at least 1, got {self.samples}")
+        if self.on_error not in ("stop", "skip"):
+            raise SSRError(f"--on-error {self.on_error!r}: expected stop or skip")
 
 
 def parse_resolution(text):
@@ -67,9 +80,14 @@ def parse_frames(text):
 
 
 def frame_numbers(scene, frames):
+    """The frames to render; a range must lie inside the scene's own frame range."""
     if frames is None:
         return [scene.frame_current]
-    return list(range(frames[0], frames[1] + 1))
+    first, last = frames
+    if first < scene.frame_start or last > scene.frame_end:
+        raise SSRError(f"--frames {first}-{last} lies outside scene '{scene.name}' "
+                       f"(frames {scene.frame_start}-{scene.frame_end})")
+    return list(range(first, last + 1))
 
 
 def render_frame(scene, request, state=None):
@@ -151,41 +169,122 @@ def pass_channels(images):
     return channels
 
 
-def write_frame(out_dir, frame, images, scene):
+def frame_paths(out_dir, frame):
     stem = os.path.join(out_dir, f"frame_{frame:04d}")
+    return [stem + suffix for suffix in OUTPUT_SUFFIXES]
+
+
+def write_frame(out_dir, frame, images, scene):
+    """Write one frame's three files under temporary names, then rename them together."""
     final = images["final"]
     if not np.isfinite(final).all():
         raise SSRError(f"frame {frame}: the result has NaN or Inf pixels; nothing written")
-    write_exr(stem + ".passes.exr", pass_channels(images))
-    write_display_png(stem + ".png", final, scene)
-    write_rgba_exr(stem + ".exr", final)
-    return [os.path.basename(stem + suffix) for suffix in (".exr", ".png", ".passes.exr")]
+    final_exr, png, passes_exr = frame_paths(out_dir, frame)
+    with written_together([passes_exr, png, final_exr]) as (passes_partial, png_partial, final_partial):
+        write_exr(passes_partial, pass_channels(images))
+        write_display_png(png_partial, final, scene)
+        write_rgba_exr(final_partial, final)
 
 
-def run_render(scene, scene_path, request, log=print):
-    """Render every requested frame into request.out_dir and write report.json; returns the report."""
+def _is_complete(out_dir, frame):
+    return all(os.path.isfile(path) for path in frame_paths(out_dir, frame))
+
+
+def _previous_report(path, request):
+    """Per-frame entries of an earlier run with the same request, to keep on resume."""
+    try:
+        with open(path, encoding="utf-8") as stream:
+            report = json.load(stream)
+    except (OSError, ValueError):
+        return {}
+    if report.get("method") != request.method or report.get("settings") != asdict(request.settings):
+        return {}
+    return {entry["frame"]: entry for entry in report.get("frames", ())}
+
+
+def run_render(scene, scene_path, request, log=print, progress_stream=None):
+    """Render every requested frame into request.out_dir, in order, carrying temporal history.
+
+    Complete frames already there are kept (resume); the history is re-warmed over
+    the frames just before the first missing one. Returns the report (also
+    written as report.json after every frame).
+    """
     require_camera(scene)
     frames = frame_numbers(scene, request.frames)
     prepare_output_folder(request.out_dir)
+    report_path = os.path.join(request.out_dir, "report.json")
+    kept = _previous_report(report_path, request) if request.resume else {}
+    todo = [f for f in frames if not (request.resume and _is_complete(request.out_dir, f))]
     report = {
         "scene": scene_path, "method": request.method, "engine": request.engine,
         "samples": request.samples, "settings": asdict(request.settings),
-        "blender": bpy.app.version_string, "gpu": None, "frames": [],
+        "blender": bpy.app.version_string, "gpu": None,
+        "frames": [kept[f] for f in frames if f in kept and f not in todo], "failed_frames": [],
     }
+    if not todo:
+        log(f"all {len(frames)} frames are already complete in {request.out_dir}")
+        return report
+    first_missing = todo[0]
+    warmup = [f for f in frames if first_missing - RESUME_WARMUP_FRAMES <= f < first_missing] \
+        if request.method == "ssr" and request.settings.use_temporal else []
+    if len(todo) < len(frames):
+        log(f"resuming at frame {first_missing}: {len(frames) - len(todo)} complete frames kept, "
+            f"history re-warmed over {len(warmup)} frames")
+    progress = None  # started at the first written frame, so warm-up does not skew the ETA
     state = ChainState()
-    for frame in frames:
+    previous = None  # (frame, camera name) of the last frame rendered
+    for frame in warmup + todo:
         scene.frame_set(frame)
-        images, timer = render_frame(scene, request, state)
-        write_frame(request.out_dir, frame, images, scene)
-        timer.lap("write")
+        camera_key = (frame, scene.camera.name if scene.camera else None)
+        if previous is None or frame != previous[0] + 1 or camera_key[1] != previous[1]:
+            state.reset_history()  # first frame, a jump in the range, or a camera cut
+        previous = camera_key
+        state.frame_index = frame * HALTON_INDICES_PER_FRAME
+        if frame == first_missing:
+            progress = FrameProgress(len(todo), progress_stream)
+        try:
+            images, timer = render_frame(scene, request, state)
+            if frame in warmup:
+                continue
+            write_frame(request.out_dir, frame, images, scene)
+            timer.lap("write")
+        except SSRError as error:
+            if request.on_error == "stop" or frame in warmup:
+                raise
+            log(f"frame {frame} failed: {error}; going on (--on-error skip)")
+            report["failed_frames"].append({"frame": frame, "error": str(error)})
+            state.reset_history()
+            previous = None
+            progress.frame_done(frame, "failed")
+            write_json(report_path, report)
+            continue
         if report["gpu"] is None and request.method == "ssr":
             report["gpu"] = describe_gpu()
         height, width = images["final"].shape[:2]
         report["resolution"] = [width, height]
         stages = {stage: round(ms, 3) for stage, ms in timer.milliseconds.items()}
-        report["frames"].append({"frame": frame, "stages_ms": stages,
-                                 "total_ms": round(sum(stages.values()), 3), **images["stats"]})
-        write_json(os.path.join(request.out_dir, "report.json"), report)
-        log(f"frame {frame}: {sum(stages.values()):.0f} ms "
-            f"({', '.join(f'{k} {v:.0f}' for k, v in stages.items())})")
+        own_ms = sum(ms for stage, ms in stages.items() if stage != "render")
+        report["frames"].append({"frame": frame, "stages_ms": stages, "total_ms": round(sum(stages.values()), 3),
+                                 "render_ms": stages["render"], "addon_ms": round(own_ms, 3),
+                                 **images["stats"]})
+        report["frames"].sort(key=lambda entry: entry["frame"])
+        write_json(report_path, report)
+        progress.frame_done(frame, f"render {stages['render'] / 1000:.1f} s + add-on {own_ms / 1000:.2f} s")
+    _summarise(report, log)
+    write_json(report_path, report)
+    if report["failed_frames"]:
+        raise SSRError(f"{len(report['failed_frames'])} frame(s) failed: "
+                       f"{', '.join(str(entry['frame']) for entry in report['failed_frames'])}")
     return report
+
+
+def _summarise(report, log):
+    """The add-on's own cost per frame beside the render's, as a ratio (into the report and the log)."""
+    timed = [entry for entry in report["frames"] if "addon_ms" in entry]
+    if timed:
+        render_ms = sum(entry["render_ms"] for entry in timed) / len(timed)
+        addon_ms = sum(entry["addon_ms"] for entry in timed) / len(timed)
+        report["mean_ms_per_frame"] = {"render": round(render_ms, 1), "addon": round(addon_ms, 1),
+                                       "addon_over_render": round(addon_ms / render_ms, 4)}
+        log(f"per frame: render {render_ms:.0f} ms, add-on (read-back, chain, composite, writing) "
+            f"{addon_ms:.0f} ms = {addon_ms / render_ms:.3f} x the render")

@@ -1,0 +1,241 @@
+"""Operators: render the current frame, the animation or a comparison sheet, and
+wire the result into the compositor.
+
+Each renders through render_job, with the comparison mode's baseline applied
+for the duration of the render. Errors the user can fix (SSRError) become one
+line in the status bar, never a traceback.
+"""
+import os
+import time
+from dataclasses import replace
+
+import bpy
+import numpy as np
+
+from .baselines import apply_baseline
+from .chain import ChainState
+from .compositor import (RESULT_IMAGE, SHEET_IMAGE, comparison_sheet, forget_last_result, publish_image,
+                         publish_result, setup_compositor)
+from .errors import SSRError
+from .outputs import prepare_output_folder
+from .overrides import TemporaryChanges
+from .render_job import RenderRequest, frame_numbers, render_frame, write_frame
+from .scene_io import require_camera
+from .settings import COMPARISON_MODES, chain_settings
+from .shaders import release_passes
+
+
+def output_folder(scene):
+    """The folder of the scene's output path (Output properties; its last part is a file prefix)."""
+    folder = os.path.dirname(bpy.path.abspath(scene.render.filepath))
+    if not folder:
+        raise SSRError(f"scene '{scene.name}' has no output path: set one in the Output properties")
+    return folder
+
+
+def render_request(scene, out_dir=""):
+    """The RenderRequest of the scene's SSR settings; OUT_DIR only matters to frames that are written."""
+    return RenderRequest(out_dir=out_dir, settings=chain_settings(scene.ssr))
+
+
+# The render_job method of each comparison mode, rendered with the mode's baseline applied:
+# EEVEE uses plane probes only with its screen-trace ray tracing.
+MODE_METHODS = {"SSR": "ssr", "CUBEMAP": "none", "PLANAR": "eevee-rt", "NONE": "none"}
+
+
+def render_mode(scene, mode, request, state=None, probe_object=None, mirror_object=None):
+    """Render the scene's current frame in comparison MODE (settings.COMPARISON_MODES); returns render_frame's result.
+
+    STATE (a chain.ChainState) carries SSR's temporal history between the frames of an animation;
+    probe_object and mirror_object choose the baselines' cubemap centre and mirror plane.
+    """
+    require_camera(scene)
+    with TemporaryChanges() as changes:
+        apply_baseline(scene, mode.lower(), changes, probe_object=probe_object, mirror_object=mirror_object)
+        return render_frame(scene, replace(request, method=MODE_METHODS[mode]), state)
+
+
+def compare_modes(scene, request, probe_object=None, mirror_object=None):
+    """The current frame in every comparison mode, side by side: (sheet rgba, label per mode, problems).
+
+    A mode the scene cannot show (no mirror plane...) gets a blank tile and a line in problems.
+    """
+    require_camera(scene)
+    tiles, problems = [], []
+    for mode, label, _ in COMPARISON_MODES:
+        started = time.perf_counter()
+        try:
+            images, _ = render_mode(scene, mode, request, probe_object=probe_object, mirror_object=mirror_object)
+        except SSRError as error:
+            problems.append(f"{label}: {error}")
+            tiles.append(([label, "n/a"], None))
+            continue
+        tiles.append(([label, f"{time.perf_counter() - started:.1f} s"], images["final"]))
+    shape = next((rgba.shape for _, rgba in tiles if rgba is not None), None)
+    if shape is None:
+        raise SSRError("; ".join(problems))
+    tiles = [(lines, np.zeros(shape, np.float32) if rgba is None else rgba) for lines, rgba in tiles]
+    return comparison_sheet(tiles), [" ".join(lines) for lines, _ in tiles], problems
+
+
+def _baseline_choices(scene):
+    return {"probe_object": scene.ssr.probe_object, "mirror_object": scene.ssr.planar_object}
+
+
+def _show_in_image_editors(context, image):
+    for area in context.screen.areas if context.screen else ():
+        if area.type == "IMAGE_EDITOR":
+            area.spaces.active.image = image
+
+
+class _ReportsErrors:
+    """execute() runs self.run(context); an SSRError becomes an error report and CANCELLED."""
+
+    def execute(self, context):
+        try:
+            return self.run(context)
+        except SSRError as error:
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+
+
+class RENDER_OT_ssr_render_frame(_ReportsErrors, bpy.types.Operator):
+    """Render the current frame in the chosen comparison mode into the "SSR Result" image"""
+    bl_idname = "render.ssr_render_frame"
+    bl_label = "Render SSR Frame"
+
+    def run(self, context):
+        scene = context.scene
+        started = time.perf_counter()
+        images, _ = render_mode(scene, scene.ssr.comparison_mode, render_request(scene), **_baseline_choices(scene))
+        image = publish_result(images, scene.ssr.debug_view)
+        _show_in_image_editors(context, image)
+        self.report({"INFO"}, f"{RESULT_IMAGE}: frame {scene.frame_current} in {time.perf_counter() - started:.1f} s")
+        return {"FINISHED"}
+
+
+class RENDER_OT_ssr_render_animation(_ReportsErrors, bpy.types.Operator):
+    """Render the scene's frame range in the chosen comparison mode into the output folder (Esc cancels)"""
+    bl_idname = "render.ssr_render_animation"
+    bl_label = "Render SSR Animation"
+
+    def _frames(self, scene):
+        """Render and write one frame per step, so a modal operator can step it between events."""
+        request = replace(render_request(scene, output_folder(scene)), frames=(scene.frame_start, scene.frame_end))
+        require_camera(scene)
+        prepare_output_folder(request.out_dir)
+        state = ChainState()
+        for frame in frame_numbers(scene, request.frames):
+            scene.frame_set(frame)
+            images, _ = render_mode(scene, scene.ssr.comparison_mode, request, state, **_baseline_choices(scene))
+            write_frame(request.out_dir, frame, images, scene)
+            publish_result(images, scene.ssr.debug_view)
+            yield frame
+
+    def _start(self, context):
+        self._scene = context.scene
+        self._initial_frame = self._scene.frame_current
+        self._steps = self._frames(self._scene)
+        self._done = 0
+
+    def _finish(self, context):
+        self._steps.close()
+        self._scene.frame_set(self._initial_frame)
+
+    def run(self, context):
+        """Synchronous: background mode and scripts."""
+        self._start(context)
+        try:
+            for _ in self._steps:
+                self._done += 1
+        finally:
+            self._finish(context)
+        self._report_written()
+        return {"FINISHED"}
+
+    def _report_written(self):
+        self.report({"INFO"}, f"{self._done} frames written to {output_folder(self._scene)}")
+
+    def invoke(self, context, event):
+        if bpy.app.background:
+            return self.execute(context)
+        self._start(context)
+        wm = context.window_manager
+        wm.progress_begin(0, self._scene.frame_end - self._scene.frame_start + 1)
+        self._timer = wm.event_timer_add(0.01, window=context.window)
+        wm.modal_handler_add(self)
+        return {"RUNNING_MODAL"}
+
+    def _end_modal(self, context):
+        wm = context.window_manager
+        wm.event_timer_remove(self._timer)
+        wm.progress_end()
+        self._finish(context)
+
+    def modal(self, context, event):
+        if event.type == "ESC":
+            self._end_modal(context)
+            self.report({"WARNING"}, f"SSR animation cancelled after {self._done} frames")
+            return {"CANCELLED"}
+        if event.type != "TIMER":
+            return {"RUNNING_MODAL"}
+        try:
+            next(self._steps)
+        except StopIteration:
+            self._end_modal(context)
+            self._report_written()
+            return {"FINISHED"}
+        except SSRError as error:
+            self._end_modal(context)
+            self.report({"ERROR"}, str(error))
+            return {"CANCELLED"}
+        self._done += 1
+        context.window_manager.progress_update(self._done)
+        return {"RUNNING_MODAL"}
+
+
+class RENDER_OT_ssr_compare(_ReportsErrors, bpy.types.Operator):
+    """Render the current frame in every comparison mode, side by side and labelled with its cost"""
+    bl_idname = "render.ssr_compare"
+    bl_label = "Compare Reflections"
+
+    def run(self, context):
+        scene = context.scene
+        sheet, labels, problems = compare_modes(scene, render_request(scene), **_baseline_choices(scene))
+        _show_in_image_editors(context, publish_image(SHEET_IMAGE, sheet))
+        if problems:
+            self.report({"WARNING"}, f"{'; '.join(labels)} ({'; '.join(problems)})")
+        else:
+            self.report({"INFO"}, "; ".join(labels))
+        return {"FINISHED"}
+
+
+class RENDER_OT_ssr_setup_compositor(_ReportsErrors, bpy.types.Operator):
+    """Make the compositor output the "SSR Result" image, so F12 and compositing work on it"""
+    bl_idname = "render.ssr_setup_compositor"
+    bl_label = "Composite SSR Result"
+    bl_options = {"REGISTER", "UNDO"}
+
+    def run(self, context):
+        image = bpy.data.images.get(RESULT_IMAGE)
+        if image is None:
+            raise SSRError(f"no '{RESULT_IMAGE}' image yet: render an SSR frame first")
+        tree = setup_compositor(context.scene, image)
+        self.report({"INFO"}, f"compositor '{tree.name}' outputs '{RESULT_IMAGE}'")
+        return {"FINISHED"}
+
+
+classes = (RENDER_OT_ssr_render_frame, RENDER_OT_ssr_render_animation, RENDER_OT_ssr_compare,
+           RENDER_OT_ssr_setup_compositor)
+
+
+def register():
+    for cls in classes:
+        bpy.utils.register_class(cls)
+
+
+def unregister():
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)
+    forget_last_result()
+    release_passes()  # the compiled GPU shaders of the chain
