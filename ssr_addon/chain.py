@@ -7,7 +7,7 @@ textures) and get GPU textures back. Stage timings go into a StageTimer.
 Stages, in the order of the slides: Hi-Z pyramid, colour pyramid, ray
 generation and tracing (cheap/expensive classes, GGX + Halton, half
 resolution), resolve with neighbour reuse and cone filtering, temporal
-filter, composite.
+filter, composite with the FG table.
 """
 import math
 from dataclasses import dataclass, field
@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .gpu_backend import TexturePool, upload
-from .shaders import MAX_PYRAMID_LEVELS, get_pass, pack_params
+from .shaders import DFG_SIZE, MAX_PYRAMID_LEVELS, get_pass, pack_params
 
 
 @dataclass
@@ -28,6 +28,7 @@ class ChainInputs:
     combined_tx: object
     specular_color_tx: object
     specular_indirect_tx: object
+    f0_tx: object               # specular reflectance at normal incidence, for FG
     view_matrix: np.ndarray
     projection_matrix: np.ndarray
     clip_start: float
@@ -51,7 +52,7 @@ class ChainInputs:
             radiance_tx=combined_tx, depth_tx=upload(passes.depth), normal_tx=upload(passes.normal),
             roughness_tx=upload(passes.roughness), combined_tx=combined_tx,
             specular_color_tx=upload(passes.specular_color),
-            specular_indirect_tx=upload(passes.specular_indirect),
+            specular_indirect_tx=upload(passes.specular_indirect), f0_tx=upload(passes.f0),
             view_matrix=passes.view_matrix, projection_matrix=passes.projection_matrix,
             clip_start=passes.clip_start, clip_end=passes.clip_end,
             ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings))
@@ -79,6 +80,7 @@ class ChainState:
     history: tuple = None                 # (filtered_tx, count_tx) of the last frame, or None
     previous_world_to_clip: np.ndarray = None
     frame_index: int = 0
+    dfg_tx: object = None                 # the FG table, computed once
 
     def reset_history(self):
         """Forget the past (camera cut, jump in the frame range)."""
@@ -175,6 +177,9 @@ def run_chain(inputs, settings, state, timer=None):
         params = pack_params(inputs.camera, previous, size, trace_size, state.frame_index,
                              inputs.ray_budget, hiz_rects, color_rects, history_mode, history_frames, settings)
         blocks = (("params", params),)
+        if state.dfg_tx is None:
+            state.dfg_tx = pool.get("dfg", (DFG_SIZE, DFG_SIZE))
+            get_pass("dfg_table").draw([state.dfg_tx], uniform_blocks=blocks)
         ray_hit_tx = pool.get("ray_hit", trace_size)
         ray_dir_tx = pool.get("ray_dir", trace_size)
         ray_stats_tx = pool.get("ray_stats", trace_size)
@@ -220,7 +225,9 @@ def run_chain(inputs, settings, state, timer=None):
         [final_tx], samplers=(("combined_tx", inputs.combined_tx),
                               ("specular_color_tx", inputs.specular_color_tx),
                               ("specular_indirect_tx", inputs.specular_indirect_tx),
-                              ("reflection_tx", reflection_tx)),
+                              ("reflection_tx", reflection_tx), ("f0_tx", inputs.f0_tx),
+                              ("dfg_tx", state.dfg_tx), ("depth_tx", inputs.depth_tx),
+                              ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx)),
         uniform_blocks=blocks)
     _lap(timer, "composite", final_tx)
     return ChainOutputs(ray_hit_tx=ray_hit_tx, ray_dir_tx=ray_dir_tx, ray_stats_tx=ray_stats_tx,

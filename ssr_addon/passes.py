@@ -14,7 +14,7 @@ import OpenImageIO as oiio
 
 from .errors import SSRError
 from .overrides import TemporaryChanges
-from .roughness_aov import AOV_NAME, add_roughness_aov
+from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .scene_io import camera_matrices, require_camera
 
 ENGINES = {"eevee": "BLENDER_EEVEE", "cycles": "CYCLES"}
@@ -33,7 +33,8 @@ class FramePasses:
     depth: np.ndarray            # (H, W) distance along the view axis; >= clip_end is background
     normal: np.ndarray           # (H, W, 3) world-space shading normal
     roughness: np.ndarray        # (H, W) 1 where no specular BSDF was rendered
-    specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (FG)
+    specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
+    f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
     specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces (probe/world), before FG
     specular_direct: np.ndarray  # (H, W, 3) lamp highlights, kept as they are
     view_matrix: np.ndarray      # (4, 4) world to view
@@ -66,7 +67,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
-        add_roughness_aov(scene, view_layer, changes)
+        add_material_aovs(scene, view_layer, changes)
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
         width, height = scene.render.resolution_x, scene.render.resolution_y
         if engine == "eevee":
@@ -80,7 +81,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             specular_direct = _layer(layers, "Glossy Direct")
             specular_indirect = _layer(layers, "Glossy Indirect")
         view, projection = camera_matrices(scene, width, height)
-    aov = _layer(layers, AOV_NAME)
+    aov = _layer(layers, ROUGHNESS_AOV)
     coverage = aov[..., 1]
     roughness = np.where(coverage > 1e-3, aov[..., 0] / np.maximum(coverage, 1e-3), 1.0)
     return FramePasses(
@@ -89,6 +90,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         normal=_layer(layers, "Normal"),
         roughness=np.clip(roughness, 0.0, 1.0).astype(np.float32),
         specular_color=_layer(layers, "Glossy Color"),
+        f0=np.ascontiguousarray(_layer(layers, F0_AOV)[..., :3]),
         specular_indirect=specular_indirect,
         specular_direct=specular_direct,
         view_matrix=view, projection_matrix=projection,

@@ -195,3 +195,42 @@ def composite(combined, specular_color, specular_indirect, reflection):
     """composite.glsl: reflection is (premultiplied radiance, confidence)."""
     replaced = specular_color * (reflection[..., :3] - reflection[..., 3:4] * specular_indirect)
     return np.concatenate([np.maximum(combined[..., :3] + replaced, 0), combined[..., 3:4]], -1)
+
+
+def hammersley(count):
+    """dfg_table.glsl hammersley(): (i + 0.5) / N and the radical inverse of i in base 2."""
+    index = np.arange(count, dtype=np.uint32)
+    bits = index.copy()
+    bits = (bits << 16) | (bits >> 16)
+    bits = ((bits & 0x55555555) << 1) | ((bits & 0xAAAAAAAA) >> 1)
+    bits = ((bits & 0x33333333) << 2) | ((bits & 0xCCCCCCCC) >> 2)
+    bits = ((bits & 0x0F0F0F0F) << 4) | ((bits & 0xF0F0F0F0) >> 4)
+    bits = ((bits & 0x00FF00FF) << 8) | ((bits & 0xFF00FF00) >> 8)
+    return (index + 0.5) / count, bits.astype(np.float64) * 2.0 ** -32
+
+
+def dfg_table(size, u1, u2):
+    """(A, B) of the GGX directional albedo F0 * A + B at texel centres (n.v along x, roughness along
+    y), integrated over the sample points (u1, u2) drawn from D(h) cos(theta_h), as dfg_table.glsl."""
+    centres = (np.arange(size) + 0.5) / size
+    return np.stack([_dfg_row(centres, roughness, u1, u2) for roughness in centres])
+
+
+def _dfg_row(n_dot_v, roughness, u1, u2):
+    n_dot_v = n_dot_v[:, None]
+    alpha = max(roughness ** 2, 1e-3)
+    cos_theta = np.sqrt((1 - u1) / (1 + (alpha ** 2 - 1) * u1))[None]
+    sin_theta = np.sqrt(1 - cos_theta ** 2)
+    phi = 2 * np.pi * u2[None]
+    h_x, h_z = sin_theta * np.cos(phi), cos_theta
+    v_dot_h = np.sqrt(1 - n_dot_v ** 2) * h_x + n_dot_v * h_z
+    n_dot_l = 2 * v_dot_h * h_z - n_dot_v
+    valid = (n_dot_l > 0) & (v_dot_h > 0)
+    a2 = alpha ** 2
+    lambda_v = np.sqrt(a2 + (1 - a2) * n_dot_v ** 2)
+    lambda_l = np.sqrt(a2 + (1 - a2) * np.clip(n_dot_l, 0, 1) ** 2)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g2 = 2 * n_dot_v * n_dot_l / (n_dot_l * lambda_v + n_dot_v * lambda_l)
+        visibility = np.where(valid, g2 * v_dot_h / (h_z * n_dot_v), 0)
+    fresnel = (1 - np.clip(v_dot_h, 0, 1)) ** 5
+    return np.stack([np.mean((1 - fresnel) * visibility, -1), np.mean(fresnel * visibility, -1)], -1)

@@ -81,6 +81,8 @@ def test_roughness_aov_follows_every_kind_of_input(roughness_scene):
     assert at(0, 0) == pytest.approx(0.45, abs=2e-3)
     assert at(1, 0) == pytest.approx(0.7, abs=4e-3)
     assert at(0, 1) == 1.0, "an object without a material is left to the probes"
+    # F0 of the default dielectric Principled BSDF: ((1.5 - 1) / (1.5 + 1))^2 * 2 * 0.5 = 0.04.
+    assert passes.f0[int(2 * 20), int(0.5 * 20)] == pytest.approx([0.04] * 3, abs=1e-3)
     assert at(-1.4, 1.9) == 1.0, "the sky traces nothing"
 
 

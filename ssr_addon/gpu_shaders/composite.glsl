@@ -1,26 +1,45 @@
 /* Composite: put traced reflections where the engine had only probe/world reflections.
  *
- * Inputs:  combined_tx (the engine's image), specular_color_tx (its pre-integrated
- *          specular reflectance, the FG term), specular_indirect_tx (the reflected
- *          light that came from probes and the world), reflection_tx (SSR:
- *          premultiplied radiance, confidence).
+ * Inputs:  combined_tx (the engine's image), specular_color_tx (the engine's own
+ *          specular weight of the light it reflected), specular_indirect_tx (that
+ *          light where it came from probes and the world), reflection_tx (SSR:
+ *          premultiplied radiance, confidence), f0_tx, dfg_tx (the FG table),
+ *          depth_tx, normal_tx, roughness_tx.
  * Output:  final_img.
  *
  * The engine's image is a sum of passes:
  *   combined = diffuse_color * diffuse_light + specular_color * (lamp_specular + indirect_specular)
  *            + emission + environment (+ transmission, volumes...).
- * SSR estimates indirect specular light, so with confidence c:
- *   final = combined + specular_color * (c * ssr - c * indirect_specular).
+ * SSR estimates indirect specular light L, which the slides' estimator
+ * multiplies by the pre-integrated FG = F0 * A + B, so with confidence c:
+ *   final = combined + c * FG * L - c * specular_color * indirect_specular.
  * Diffuse light, emission, the world seen directly and lamp highlights pass
  * through untouched; where c is 0 the probe/world reflection stays. */
+
+vec3 fg_term(vec3 f0, float n_dot_v, float roughness)
+{
+  /* Texel i holds (i + 0.5) / N: map [0.5/N, 1 - 0.5/N] onto the texel centres. */
+  vec2 table_size = vec2(textureSize(dfg_tx, 0));
+  vec2 coordinate = clamp(vec2(n_dot_v, roughness), 0.5 / table_size, 1.0 - 0.5 / table_size);
+  vec2 scale_bias = textureLod(dfg_tx, coordinate, 0.0).xy;
+  return f0 * scale_bias.x + scale_bias.y;
+}
 
 void main()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy);
   vec4 combined = texelFetch(combined_tx, texel, 0);
   vec4 reflection = texelFetch(reflection_tx, texel, 0);
+  final_img = combined;
+  if (reflection.a <= 0.0) {
+    return;
+  }
+  vec2 uv = (vec2(texel) + 0.5) * params.viewport.zw;
+  vec3 normal = view_normal(texelFetch(normal_tx, texel, 0).xyz);
+  float n_dot_v = clamp(dot(normal, -view_incident(uv)), 0.0, 1.0);
+  vec3 fg = fg_term(texelFetch(f0_tx, texel, 0).rgb, n_dot_v, texelFetch(roughness_tx, texel, 0).r);
   vec3 specular_color = texelFetch(specular_color_tx, texel, 0).rgb;
   vec3 indirect = texelFetch(specular_indirect_tx, texel, 0).rgb;
-  vec3 replaced = specular_color * (reflection.rgb - reflection.a * indirect);
+  vec3 replaced = fg * reflection.rgb - reflection.a * specular_color * indirect;
   final_img = vec4(max(combined.rgb + replaced, vec3(0.0)), combined.a);
 }

@@ -1,0 +1,59 @@
+"""Resident memory over a long 1600x900 batch run of the add-on's own per-frame work.
+
+    .venv/bin/python benchmarks/batch_memory.py [--frames 240] [--no-write]
+
+Every frame does what `render` does after the engine's render: upload the
+passes, run the chain with temporal history, read the results back and write
+the frame's three files. The engine render itself is left out (it is Blender's
+memory, and minutes per frame in software GL): the passes of one render are
+reused. Prints resident memory at frames 1, 60, 120 and 240 and the per-frame
+milliseconds of each step.
+"""
+import argparse
+import os
+import statistics
+import tempfile
+
+from common import SIZE, upscaled_passes
+
+from ssr_addon.chain import ChainState
+from ssr_addon.params import ChainSettings
+from ssr_addon.render_job import RenderRequest, render_frame, write_frame
+import ssr_addon.render_job as render_job
+
+
+def resident_mib():
+    with open("/proc/self/statm", encoding="ascii") as stream:
+        return int(stream.read().split()[1]) * os.sysconf("SC_PAGE_SIZE") / 2 ** 20
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=240)
+    parser.add_argument("--no-write", action="store_true", help="skip writing the files")
+    arguments = parser.parse_args()
+    scene, passes = upscaled_passes()
+    # The engine render is replaced by the one set of passes rendered above.
+    render_job.render_passes = lambda *args, **kwargs: passes
+    request = RenderRequest(out_dir="", settings=ChainSettings())
+    state = ChainState()
+    checkpoints = {1, 60, 120, 240, arguments.frames}
+    stage_ms = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for frame in range(1, arguments.frames + 1):
+            images, timer = render_frame(scene, request, state)
+            if not arguments.no_write:
+                write_frame(folder, 1, images, scene)  # one frame's files, overwritten each time
+                timer.lap("write")
+            for stage, ms in timer.milliseconds.items():
+                stage_ms.setdefault(stage, []).append(ms)
+            if frame in checkpoints:
+                print(f"frame {frame:4d}: resident memory {resident_mib():8.1f} MiB", flush=True)
+    print(f"\nper frame at {SIZE[0]}x{SIZE[1]} (median ms):")
+    for stage, values in stage_ms.items():
+        if stage != "render":
+            print(f"  {stage:<14}{statistics.median(values):8.1f}")
+
+
+if __name__ == "__main__":
+    main()

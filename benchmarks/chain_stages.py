@@ -1,0 +1,50 @@
+"""Per-stage milliseconds of the SSR chain at 1600x900, as multiples of a full-screen copy.
+
+    .venv/bin/python benchmarks/chain_stages.py [--frames N] [--preset NAME ...]
+
+Each preset runs N animation frames (one iteration each, temporal history on);
+the table gives the median per stage. The copy pass is measured in the same run.
+"""
+import argparse
+import statistics
+
+from common import SIZE, copy_pass_ms, upscaled_passes
+
+from ssr_addon.chain import ChainInputs, ChainState, run_chain
+from ssr_addon.gpu_backend import StageTimer
+from ssr_addon.params import PRESETS, preset
+
+STAGES = ("hiz", "color_pyramid", "trace", "resolve", "temporal", "composite")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=8)
+    parser.add_argument("--preset", nargs="+", default=list(PRESETS))
+    arguments = parser.parse_args()
+    _, passes = upscaled_passes()
+    print(f"inputs: {SIZE[0]}x{SIZE[1]}")
+    rows = []
+    for name in arguments.preset:
+        settings = preset(name)
+        inputs = ChainInputs.from_passes(passes, settings)
+        state = ChainState()
+        run_chain(inputs, settings, state)  # compiles shaders, fills the history
+        timings = {stage: [] for stage in STAGES}
+        for _ in range(arguments.frames):
+            timer = StageTimer()
+            run_chain(inputs, settings, state, timer)
+            for stage in STAGES:
+                timings[stage].append(timer.milliseconds.get(stage, 0.0))
+        rows.append((name, {stage: statistics.median(values) for stage, values in timings.items()}))
+    copy_ms = copy_pass_ms(inputs.radiance_tx)
+    print(f"full-screen copy pass: {copy_ms:.2f} ms\n")
+    print(f"{'preset':<10}" + "".join(f"{stage:>15}" for stage in STAGES) + f"{'total':>15}")
+    for name, medians in rows:
+        total = sum(medians.values())
+        cells = "".join(f"{ms:8.1f} ({ms / copy_ms:4.1f}x)" for ms in medians.values())
+        print(f"{name:<10}{cells}{total:8.1f} ({total / copy_ms:4.1f}x)")
+
+
+if __name__ == "__main__":
+    main()
