@@ -18,8 +18,8 @@ from common import SIZE, upscaled_passes
 
 from ssr_addon.chain import ChainState
 from ssr_addon.params import ChainSettings
-from ssr_addon.render_job import RenderRequest, render_frame, write_frame
 import ssr_addon.render_job as render_job
+from ssr_addon.render_job import RenderRequest, render_frame, write_frame
 
 
 def resident_mib():
@@ -35,6 +35,7 @@ def main():
     scene, passes = upscaled_passes()
     # The engine render is replaced by the one set of passes rendered above.
     render_job.render_passes = lambda *args, **kwargs: passes
+    render_job.return_large_buffers_to_the_system()  # as run_render does
     request = RenderRequest(out_dir="", settings=ChainSettings())
     state = ChainState()
     checkpoints = {1, 60, 120, 240, arguments.frames}

@@ -29,6 +29,7 @@ class ChainInputs:
     specular_color_tx: object
     specular_indirect_tx: object
     f0_tx: object               # specular reflectance at normal incidence, for FG
+    motion_tx: object           # screen offset to the previous frame in pixels (Vector pass)
     view_matrix: np.ndarray
     projection_matrix: np.ndarray
     clip_start: float
@@ -53,6 +54,7 @@ class ChainInputs:
             roughness_tx=upload(passes.roughness), combined_tx=combined_tx,
             specular_color_tx=upload(passes.specular_color),
             specular_indirect_tx=upload(passes.specular_indirect), f0_tx=upload(passes.f0),
+            motion_tx=upload(passes.motion),
             view_matrix=passes.view_matrix, projection_matrix=passes.projection_matrix,
             clip_start=passes.clip_start, clip_end=passes.clip_end,
             ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings))
@@ -209,8 +211,8 @@ def run_chain(inputs, settings, state, timer=None):
             get_pass("temporal").draw(
                 [filtered_tx, count_tx],
                 samplers=(("reflection_tx", reflection_tx), ("reflection_hit_tx", reflection_hit_tx),
-                          ("depth_tx", inputs.depth_tx), ("history_tx", history_tx),
-                          ("history_count_tx", history_count_tx)),
+                          ("depth_tx", inputs.depth_tx), ("motion_tx", inputs.motion_tx),
+                          ("history_tx", history_tx), ("history_count_tx", history_count_tx)),
                 uniform_blocks=blocks)
             _lap(timer, "temporal", filtered_tx)
             state.history = (filtered_tx, count_tx)

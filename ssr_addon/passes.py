@@ -35,6 +35,7 @@ class FramePasses:
     roughness: np.ndarray        # (H, W) 1 where no specular BSDF was rendered
     specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
     f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
+    motion: np.ndarray           # (H, W, 2) screen offset to the previous frame, pixels, y up (Vector pass)
     specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces (probe/world), before FG
     specular_direct: np.ndarray  # (H, W, 3) lamp highlights, kept as they are
     view_matrix: np.ndarray      # (4, 4) world to view
@@ -82,6 +83,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             specular_indirect = _layer(layers, "Glossy Indirect")
         view, projection = camera_matrices(scene, width, height)
     aov = _layer(layers, ROUGHNESS_AOV)
+    passes_shape = aov.shape[:2]
     coverage = aov[..., 1]
     roughness = np.where(coverage > 1e-3, aov[..., 0] / np.maximum(coverage, 1e-3), 1.0)
     return FramePasses(
@@ -91,6 +93,9 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         roughness=np.clip(roughness, 0.0, 1.0).astype(np.float32),
         specular_color=_layer(layers, "Glossy Color"),
         f0=np.ascontiguousarray(_layer(layers, F0_AOV)[..., :3]),
+        # Cycles has no Vector pass while motion blur is on: then objects count as still.
+        motion=np.ascontiguousarray(layers["Vector"][..., :2]) if "Vector" in layers
+        else np.zeros(passes_shape + (2,), np.float32),
         specular_indirect=specular_indirect,
         specular_direct=specular_direct,
         view_matrix=view, projection_matrix=projection,
@@ -112,7 +117,7 @@ def _configure_render(scene, view_layer, engine, samples, resolution, changes, e
     changes.set(render, "use_sequencer", False)
     for layer in scene.view_layers:
         changes.set(layer, "use", layer == view_layer)
-    for flag in ("use_pass_combined", "use_pass_z", "use_pass_normal",
+    for flag in ("use_pass_combined", "use_pass_z", "use_pass_normal", "use_pass_vector",
                  "use_pass_glossy_direct", "use_pass_glossy_color"):
         changes.set(view_layer, flag, True)
     if engine == "eevee":

@@ -3,6 +3,8 @@
 Shared by the command line and the operators: everything here takes the
 scene and a RenderRequest, never bpy.context.
 """
+import ctypes
+import ctypes.util
 import json
 import os
 import re
@@ -153,6 +155,7 @@ def pass_channels(images):
     layer("Normal", passes.normal, "XYZ")
     layer("Roughness", passes.roughness, "V")
     layer("Specular Color", passes.specular_color, "RGB")
+    layer("F0", passes.f0, "RGB")
     layer("Specular Direct", passes.specular_direct, "RGB")
     layer("Specular Indirect", passes.specular_indirect, "RGB")
     layer("SSR Reflection", reflection, "RGB")  # premultiplied by confidence: what FG multiplies
@@ -202,6 +205,20 @@ def _previous_report(path, request):
     return {entry["frame"]: entry for entry in report.get("frames", ())}
 
 
+def return_large_buffers_to_the_system():
+    """Serve every allocation over 1 MiB with its own mapping (glibc), freed back at once.
+
+    Each frame allocates and frees tens of full-resolution buffers; glibc's
+    adaptive threshold otherwise moves them onto the heap after the first free,
+    where fragmentation grows resident memory ~10 MiB a frame at 1600x900
+    (benchmarks/batch_memory.py).
+    """
+    libc_name = ctypes.util.find_library("c")
+    if libc_name and hasattr(ctypes.CDLL(libc_name), "mallopt"):
+        m_mmap_threshold = -3
+        ctypes.CDLL(libc_name).mallopt(m_mmap_threshold, 1 << 20)
+
+
 def run_render(scene, scene_path, request, log=print, progress_stream=None):
     """Render every requested frame into request.out_dir, in order, carrying temporal history.
 
@@ -212,6 +229,7 @@ def run_render(scene, scene_path, request, log=print, progress_stream=None):
     require_camera(scene)
     frames = frame_numbers(scene, request.frames)
     prepare_output_folder(request.out_dir)
+    return_large_buffers_to_the_system()
     report_path = os.path.join(request.out_dir, "report.json")
     kept = _previous_report(report_path, request) if request.resume else {}
     todo = [f for f in frames if not (request.resume and _is_complete(request.out_dir, f))]

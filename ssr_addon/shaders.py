@@ -47,7 +47,7 @@ PASSES = {
                                                 "roughness_tx", "color_tx"),
                                ("reflection_img", "reflection_hit_img"),
                                libraries=("common_lib.glsl", "ggx_lib.glsl")),
-    "temporal": PassDeclaration("temporal.glsl", ("reflection_tx", "reflection_hit_tx", "depth_tx",
+    "temporal": PassDeclaration("temporal.glsl", ("reflection_tx", "reflection_hit_tx", "depth_tx", "motion_tx",
                                                   "history_tx", "history_count_tx"),
                                 ("filtered_img", "count_img")),
     "dfg_table": PassDeclaration("dfg_table.glsl", (), ("dfg_img",), libraries=("common_lib.glsl", "ggx_lib.glsl"),

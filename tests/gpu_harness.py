@@ -18,7 +18,7 @@ def run_synthetic_chain(depth, normal, roughness, projection, settings, radiance
     inputs = ChainInputs(
         radiance_tx=radiance_tx, depth_tx=upload(depth), normal_tx=upload(normal),
         roughness_tx=upload(roughness), combined_tx=radiance_tx, specular_color_tx=ones_tx,
-        specular_indirect_tx=zeros_tx, f0_tx=ones_tx, view_matrix=np.eye(4, dtype=np.float32),
+        specular_indirect_tx=zeros_tx, f0_tx=ones_tx, motion_tx=zeros_tx, view_matrix=np.eye(4, dtype=np.float32),
         projection_matrix=projection, clip_start=CLIP_START, clip_end=CLIP_END, ray_budget=ray_budget)
     outputs = run_chain(inputs, settings, state or ChainState())
     arrays = {name: download(getattr(outputs, f"{name}_tx"))

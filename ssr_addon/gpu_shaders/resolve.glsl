@@ -4,7 +4,7 @@
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
  *          color_tx (colour pyramid atlas; level 0 is the lit scene).
  * Outputs: reflection_img     = (reflected radiance * confidence, confidence),
- *          reflection_hit_img = (mean hit distance, weight sum, rays reused, 0).
+ *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
  *
  * Each pixel reuses the rays of its own and neighbouring traced texels with the
  * ratio estimator  L = sum(L_k f_s(l_k) cos / p_k) / sum(f_s(l_k) cos / p_k),
@@ -61,6 +61,7 @@ void main()
 
   vec3 radiance_sum = vec3(0.0);
   float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;
+  vec2 hit_uv_sum = vec2(0.0);
   for (int k = 0; k < ray_count; k++) {
     ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
     vec4 hit = texelFetch(ray_hit_tx, texel, 0);
@@ -83,6 +84,7 @@ void main()
       radiance_sum += hit_weight * hit_radiance(hit.xy, hit_distance, hit.z, float(ray_count));
       hit_weight_sum += hit_weight;
       distance_sum += hit_weight * hit_distance;
+      hit_uv_sum += hit_weight * hit.xy;
     }
   }
   if (hit_weight_sum <= 0.0 || weight_sum <= 0.0) {
@@ -93,5 +95,5 @@ void main()
   float roughness_fade = 1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness);
   float confidence = hit_weight_sum / weight_sum * roughness_fade;
   reflection_img = vec4(radiance_sum / hit_weight_sum * confidence, confidence);
-  reflection_hit_img = vec4(distance_sum / hit_weight_sum, weight_sum, float(ray_count), 0.0);
+  reflection_hit_img = vec4(distance_sum, hit_uv_sum, 0.0) / hit_weight_sum;
 }

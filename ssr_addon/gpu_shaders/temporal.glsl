@@ -5,6 +5,7 @@
  *   x_prev = P_{t-1} V_{t-1} x_world.
  *
  * Inputs:  reflection_tx, reflection_hit_tx (this frame's resolve, premultiplied), depth_tx,
+ *          motion_tx (Vector pass: pixels to the previous frame),
  *          history_tx (last frame's output: premultiplied radiance, confidence),
  *          history_count_tx (frames accumulated in it).
  * Outputs: filtered_img (premultiplied radiance, confidence), count_img (frames accumulated, 0, 0, 0).
@@ -13,6 +14,13 @@
  * rejects stale history (disocclusion, moving objects) at the cost of some
  * noise; a still's iterations share one camera and scene, so theirs is not. Each pixel averages up to params.temporal.x frames: 1 / (1 - temporal_weight)
  * in an animation, all the iterations of an accumulated still. */
+
+/* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
+vec2 previous_screen_position(vec3 view_point)
+{
+  vec4 previous_clip = params.previous_world_to_clip * (params.view_to_world * vec4(view_point, 1.0));
+  return previous_clip.w > 0.0 ? previous_clip.xy / previous_clip.w * 0.5 + 0.5 : vec2(-1.0);
+}
 
 void main()
 {
@@ -25,18 +33,28 @@ void main()
     return;
   }
   vec2 uv = (vec2(pixel) + 0.5) * params.viewport.zw;
-  vec3 surface = view_position(uv, depth);
-  vec3 point = surface;
-  float hit_distance = texelFetch(reflection_hit_tx, pixel, 0).x;
-  if (params.temporal.y > 0.0 && hit_distance > 0.0) {
-    /* The virtual image: as far behind the surface, along the camera ray, as the hit is in front. */
-    point = surface + view_incident(uv) * hit_distance;
+  vec2 previous_uv;
+  vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
+  if (params.temporal.z >= 2.0) {
+    previous_uv = uv; /* a still's earlier iteration: same camera, same instant */
   }
-  vec4 previous_clip = params.previous_world_to_clip * (params.view_to_world * vec4(point, 1.0));
-  if (previous_clip.w <= 0.0) {
-    return;
+  else if (params.temporal.y > 0.0 && hit.x > 0.0) {
+    /* The virtual image: as far behind the surface, along the camera ray, as the hit is in
+     * front of it, moved by the camera... */
+    vec3 virtual_point = view_position(uv, depth) + view_incident(uv) * hit.x;
+    previous_uv = previous_screen_position(virtual_point);
+    /* ...and by what the hit object itself did: the Vector pass at the hit, less the
+     * camera's share of it. Exact for motion parallel to the mirror, an approximation
+     * otherwise; the neighbourhood clamp catches the rest. */
+    float hit_depth = texelFetch(depth_tx, texel_at(hit.yz * params.viewport.xy), 0).r;
+    vec2 camera_flow = previous_screen_position(view_position(hit.yz, hit_depth)) - hit.yz;
+    vec2 hit_flow = texelFetch(motion_tx, texel_at(hit.yz * params.viewport.xy), 0).xy * params.viewport.zw;
+    previous_uv += hit_flow - camera_flow;
   }
-  vec2 previous_uv = previous_clip.xy / previous_clip.w * 0.5 + 0.5;
+  else {
+    /* The reflecting surface, camera and object motion both: the Vector pass itself. */
+    previous_uv = uv + texelFetch(motion_tx, pixel, 0).xy * params.viewport.zw;
+  }
   if (any(lessThan(previous_uv, vec2(0.0))) || any(greaterThan(previous_uv, vec2(1.0)))) {
     return; /* off screen last frame: no history */
   }
