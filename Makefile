@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 OUT ?= out/demo
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench dist validate clean
+.PHONY: demo test bench bench-chain bench-memory dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -21,6 +21,12 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest tests
+
+bench-chain: $(STAMP)
+	$(PY) benchmarks/chain_stages.py
+
+bench-memory: $(STAMP)
+	$(PY) benchmarks/batch_memory.py
 
 validate: $(STAMP)
 	$(PY) $(BLENDER_EXT) validate .

@@ -44,6 +44,15 @@ def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
     assert not out.exists() or not os.listdir(out)
 
 
+def test_unwritable_output_folder(tmp_path):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a folder")
+    result = run_cli("render", os.path.join(SCENES, "mirror_floor.py"), "--out", blocker / "out", check=False)
+    lines = error_lines(result)
+    assert result.returncode == 2 and len(lines) == 1, result.stderr
+    assert lines[0].startswith("error: cannot create output folder") and "Traceback" not in result.stderr
+
+
 def test_corrupt_blend_file(tmp_path):
     corrupt = tmp_path / "corrupt.blend"
     corrupt.write_bytes(b"BLENDER-v500 this is not a blend file" * 10)
