@@ -22,6 +22,10 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest tests
 
+# Regenerates docs/bench/ and the README's chart and table.
+bench: $(STAMP)
+	$(PY) -m ssr_addon bench --scenes mirror_floor rough_spheres --resolution 160x90 --out docs/bench --readme README.md
+
 bench-chain: $(STAMP)
 	$(PY) benchmarks/chain_stages.py
 

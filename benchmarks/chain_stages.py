@@ -8,8 +8,9 @@ the table gives the median per stage. The copy pass is measured in the same run.
 import argparse
 import statistics
 
-from common import SIZE, copy_pass_ms, upscaled_passes
+from common import SIZE, upscaled_passes
 
+from ssr_addon.bench import copy_pass_ms
 from ssr_addon.chain import ChainInputs, ChainState, run_chain
 from ssr_addon.gpu_backend import StageTimer
 from ssr_addon.params import PRESETS, preset
@@ -37,7 +38,7 @@ def main():
             for stage in STAGES:
                 timings[stage].append(timer.milliseconds.get(stage, 0.0))
         rows.append((name, {stage: statistics.median(values) for stage, values in timings.items()}))
-    copy_ms = copy_pass_ms(inputs.radiance_tx)
+    copy_ms = copy_pass_ms(SIZE)
     print(f"full-screen copy pass: {copy_ms:.2f} ms\n")
     print(f"{'preset':<10}" + "".join(f"{stage:>15}" for stage in STAGES) + f"{'total':>15}")
     for name, medians in rows:

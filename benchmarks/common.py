@@ -1,6 +1,5 @@
-"""Shared by the benchmarks: 1600x900 inputs and the full-screen copy yardstick."""
+"""Shared by the benchmarks: 1600x900 inputs (the copy-pass yardstick is ssr_addon.bench.copy_pass_ms)."""
 import os
-import statistics
 import sys
 
 import numpy as np
@@ -8,10 +7,9 @@ import numpy as np
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, REPO)
 
-from ssr_addon.gpu_backend import StageTimer, empty_texture, ensure_backend  # noqa: E402
+from ssr_addon.gpu_backend import ensure_backend  # noqa: E402
 from ssr_addon.passes import FramePasses, render_passes  # noqa: E402
 from ssr_addon.scene_io import load_scene  # noqa: E402
-from ssr_addon.shaders import get_pass  # noqa: E402
 
 SIZE = (1600, 900)
 
@@ -28,17 +26,3 @@ def upscaled_passes(scene_name="mirror_floor", factor=5):
         fields[name] = value
     ensure_backend()
     return scene, FramePasses(**fields)
-
-
-def copy_pass_ms(source_tx, repeats=20):
-    """Median milliseconds of one full-screen copy of SOURCE (the yardstick)."""
-    target = empty_texture((source_tx.width, source_tx.height))
-    copy = get_pass("copy")
-    timings = []
-    for _ in range(repeats + 1):
-        timer = StageTimer()
-        timer.lap("start", target)
-        copy.draw([target], samplers=(("source_tx", source_tx),))
-        timer.lap("copy", target)
-        timings.append(timer.milliseconds["copy"])
-    return statistics.median(timings[1:])

@@ -1,13 +1,19 @@
-"""Command line: `python -m ssr_addon render SCENE --out DIR ...`.
+"""Command line: `python -m ssr_addon render SCENE --out DIR ...`, `... compare SCENE --out DIR` and `... bench --out DIR`.
 
-Also reachable from the Blender binary:
-    blender -b --python-expr "import ssr_addon.cli; ssr_addon.cli.main()" -- render SCENE --out DIR
+Also reachable from the Blender binary, where SCENE may be left out to use the
+.blend file Blender opened:
+    blender -b shot.blend --python-expr "import ssr_addon.cli; ssr_addon.cli.main()" -- render --out DIR
 Errors the user can fix print one line and exit with status 2.
 """
 import argparse
+import os
 import sys
 
+import bpy
+
+from . import bench
 from .errors import SSRError
+from .outputs import prepare_output_folder, write_display_png, write_json, write_rgba_exr, written_together
 from .params import ChainSettings
 from .render_job import METHODS, RenderRequest, parse_frames, parse_resolution, run_render
 from .scene_io import load_scene, require_camera
@@ -23,7 +29,9 @@ def build_parser():
                              description="Stochastic screen-space reflections for Blender renders.")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_ArgumentParser)
     render = commands.add_parser("render", help="render frames with SSR, without it, or with Cycles")
-    render.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
+    render.add_argument("scene", nargs="?",
+                        help="a .blend file or a .py scene builder defining build(scene) "
+                             "(default: the .blend file the Blender binary opened)")
     render.add_argument("--out", required=True, help="output folder")
     render.add_argument("--method", default="ssr", choices=METHODS)
     render.add_argument("--engine", default="eevee", choices=("eevee", "cycles"),
@@ -32,7 +40,36 @@ def build_parser():
     render.add_argument("--frames", help="frame N or range A-B (default: the current frame)")
     render.add_argument("--samples", type=int, help="EEVEE or Cycles samples per pixel")
     render.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a chain setting, e.g. --set thickness=0.1 (repeatable)")
+                        help="override a chain setting, e.g. --set thickness=0.1 or --set preset=high (repeatable)")
+    render.add_argument("--on-error", default="stop", choices=("stop", "skip"),
+                        help="a frame that fails: stop the run, or report it and go on")
+    render.add_argument("--overwrite", action="store_true",
+                        help="render every frame again instead of keeping complete frames already in --out")
+    compare = commands.add_parser("compare", help="render one frame with SSR, cubemap, planar and no reflections, "
+                                                  "side by side with the cost of each")
+    compare.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
+    compare.add_argument("--out", required=True, help="output folder for compare.png, compare.exr, compare.json")
+    compare.add_argument("--resolution", help="WIDTHxHEIGHT (default: the scene's)")
+    compare.add_argument("--frame", type=int, help="frame to render (default: the current frame)")
+    compare.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                         help="override a chain setting (repeatable)")
+    measure = commands.add_parser("bench", help="chart speed against accuracy of every method, and stability cases")
+    measure.add_argument("--scenes", nargs="+", metavar="SCENE",
+                         help=f"scene names in test_scenes/ or scene files (default: {' '.join(bench.DEFAULT_SCENES)})")
+    measure.add_argument("--resolution", help="WIDTHxHEIGHT (default: %dx%d)" % bench.DEFAULT_RESOLUTION)
+    measure.add_argument("--out", required=True, help="output folder for bench.json, bench.csv and the charts")
+    measure.add_argument("--frames", type=int, default=bench.DEFAULT_FRAMES,
+                         help="frames each contender renders, taking turns: time is each stage's fastest "
+                              "after the first, accuracy the last frame's")
+    measure.add_argument("--samples", type=int,
+                         help="EEVEE samples per pixel of every EEVEE render (default: the add-on's)")
+    measure.add_argument("--reference-samples", type=int, default=bench.REFERENCE_SAMPLES,
+                         help="Cycles samples of the reference")
+    measure.add_argument("--cache", default=bench.DEFAULT_CACHE, help="folder of cached references")
+    measure.add_argument("--contenders", nargs="+", metavar="PATTERN",
+                         help="only the contenders whose names match these shell patterns, e.g. 'ssr*'")
+    measure.add_argument("--no-stability", action="store_true", help="skip the stability cases")
+    measure.add_argument("--readme", metavar="FILE", help="rewrite the bench block of this README")
     return parser
 
 
@@ -47,14 +84,43 @@ def _command_line(argv):
 def run(argv=None):
     """Parse and run; raises SSRError for anything the user can fix."""
     arguments = build_parser().parse_args(_command_line(argv))
+    if arguments.command == "bench":
+        return bench.run_bench(bench.options_from_arguments(arguments))
+    if arguments.command == "compare":
+        return _compare(arguments)
     request = RenderRequest(
         out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
         resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
         frames=parse_frames(arguments.frames) if arguments.frames else None,
-        samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides))
+        samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
+        on_error=arguments.on_error, resume=not arguments.overwrite)
+    scene_path = arguments.scene or bpy.data.filepath
+    if not scene_path:
+        raise SSRError("no SCENE given and Blender has no .blend file open")
+    scene = load_scene(arguments.scene) if arguments.scene else bpy.context.scene
+    require_camera(scene)
+    return run_render(scene, scene_path, request)
+
+
+def _compare(arguments):
+    from .operators import compare_modes  # the add-on's comparison modes, shared with its button
+    request = RenderRequest(
+        out_dir=arguments.out, resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
+        settings=ChainSettings().with_overrides(arguments.overrides))
     scene = load_scene(arguments.scene)
     require_camera(scene)
-    return run_render(scene, arguments.scene, request)
+    if arguments.frame is not None:
+        scene.frame_set(arguments.frame)
+    prepare_output_folder(arguments.out)
+    sheet, labels, problems = compare_modes(scene, request)
+    paths = [os.path.join(arguments.out, name) for name in ("compare.exr", "compare.png")]
+    with written_together(paths) as (exr, png):
+        write_rgba_exr(exr, sheet)
+        write_display_png(png, sheet, scene)
+    write_json(os.path.join(arguments.out, "compare.json"),
+               {"scene": arguments.scene, "frame": scene.frame_current, "modes": labels, "problems": problems})
+    for line in labels + problems:
+        print(line)
 
 
 def main(argv=None):

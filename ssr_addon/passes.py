@@ -18,6 +18,7 @@ from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .scene_io import camera_matrices, require_camera
 
 ENGINES = {"eevee": "BLENDER_EEVEE", "cycles": "CYCLES"}
+BACKGROUND_DEPTH = 1e10  # depth of pixels that show the world (past any clip_end)
 DEFAULT_SAMPLES = {"eevee": 16, "cycles": 128}
 # EEVEE's own screen-space ray tracing, the peer a Blender user would pick instead:
 # its defaults, and the highest quality its options allow.
@@ -30,7 +31,7 @@ EEVEE_RAYTRACING = {
 @dataclass
 class FramePasses:
     combined: np.ndarray         # (H, W, 4) the engine's final image, scene linear
-    depth: np.ndarray            # (H, W) distance along the view axis; >= clip_end is background
+    depth: np.ndarray            # (H, W) distance along the view axis; BACKGROUND_DEPTH for the world
     normal: np.ndarray           # (H, W, 3) world-space shading normal
     roughness: np.ndarray        # (H, W) 1 where no specular BSDF was rendered
     specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
@@ -86,10 +87,15 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     passes_shape = aov.shape[:2]
     coverage = aov[..., 1]
     roughness = np.where(coverage > 1e-3, aov[..., 0] / np.maximum(coverage, 1e-3), 1.0)
+    normal = _layer(layers, "Normal")
+    depth = _layer(layers, "Depth")[..., 0].copy()
+    # The world has no normal; its depth is about clip_end in EEVEE (sometimes a hair
+    # below it) and 1e10 in Cycles. Give it one unmistakable value.
+    depth[np.linalg.norm(normal, axis=-1) < 0.5] = BACKGROUND_DEPTH
     return FramePasses(
         combined=_layer(layers, "Combined"),
-        depth=_layer(layers, "Depth")[..., 0],
-        normal=_layer(layers, "Normal"),
+        depth=depth,
+        normal=normal,
         roughness=np.clip(roughness, 0.0, 1.0).astype(np.float32),
         specular_color=_layer(layers, "Glossy Color"),
         f0=np.ascontiguousarray(_layer(layers, F0_AOV)[..., :3]),

@@ -67,3 +67,16 @@ def set_resolution(scene, width, height):
     scene.render.resolution_x = width
     scene.render.resolution_y = height
     scene.render.resolution_percentage = 100
+
+
+def animate_location(scene, obj, locations, first_frame=1):
+    """Key OBJ at each location on consecutive frames and make them the scene's frame range.
+
+    Every rendered frame is a key, so the interpolation between keys never matters.
+    """
+    for offset, location in enumerate(locations):
+        obj.location = location
+        obj.keyframe_insert("location", frame=first_frame + offset)
+    scene.frame_start = first_frame
+    scene.frame_end = first_frame + len(locations) - 1
+    scene.frame_set(first_frame)

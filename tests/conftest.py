@@ -27,19 +27,14 @@ def run_cli(*args, check=True):
 
 
 def read_exr(path):
-    """{channel name: (H, W) float32} of a single-part EXR."""
-    import OpenImageIO as oiio
-    source = oiio.ImageInput.open(str(path))
-    assert source is not None, oiio.geterror()
-    spec = source.spec()
-    pixels = source.read_image(0, 0, 0, spec.nchannels, "float")
-    source.close()
-    return {name: np.asarray(pixels[..., index]) for index, name in enumerate(spec.channelnames)}
+    """{channel name: (H, W) float32} of a single-part EXR (the bench's reader, shared)."""
+    from ssr_addon.bench import read_channels
+    return read_channels(str(path))
 
 
 def rgb(channels, layer=None):
-    prefix = f"{layer}." if layer else ""
-    return np.stack([channels[f"{prefix}{c}"] for c in "RGB"], axis=-1)
+    from ssr_addon.bench import layer_rgb
+    return layer_rgb(channels, layer)
 
 
 class RenderedScene:

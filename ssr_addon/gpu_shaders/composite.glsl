@@ -31,8 +31,8 @@ void main()
   vec4 combined = texelFetch(combined_tx, texel, 0);
   vec4 reflection = texelFetch(reflection_tx, texel, 0);
   final_img = combined;
-  if (reflection.a <= 0.0) {
-    return;
+  if (!(reflection.a > 0.0)) {
+    return; /* no reflection (NaN included): the engine's image as it is */
   }
   vec2 uv = (vec2(texel) + 0.5) * params.viewport.zw;
   vec3 normal = view_normal(texelFetch(normal_tx, texel, 0).xyz);

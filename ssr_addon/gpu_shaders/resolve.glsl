@@ -65,7 +65,7 @@ void main()
   for (int k = 0; k < ray_count; k++) {
     ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
     vec4 hit = texelFetch(ray_hit_tx, texel, 0);
-    if (hit.z <= 0.0) {
+    if (!(hit.z > 0.0)) {
       continue; /* no ray was traced there (sky, rough or back-facing pixel) */
     }
     vec4 ray = texelFetch(ray_dir_tx, texel, 0);
@@ -87,7 +87,8 @@ void main()
       hit_uv_sum += hit_weight * hit.xy;
     }
   }
-  if (hit_weight_sum <= 0.0 || weight_sum <= 0.0) {
+  /* Written so that NaN, should any reach here, counts as "no reflection". */
+  if (!(hit_weight_sum > 0.0 && weight_sum > 0.0)) {
     return;
   }
   /* Confidence fades to zero over the top fifth of [0, max_roughness] so the

@@ -42,7 +42,11 @@ void main()
   vec2 uv = (vec2(pixel) + 0.5) * params.viewport.zw;
   vec3 origin = view_position(uv, depth);
   vec3 incident = view_incident(uv);
-  vec3 normal = view_normal(texelFetch(normal_tx, pixel, 0).xyz);
+  vec3 world_normal = texelFetch(normal_tx, pixel, 0).xyz;
+  if (!(dot(world_normal, world_normal) > 0.25)) {
+    return; /* no surface here (the world, or an unfilled pixel) */
+  }
+  vec3 normal = view_normal(world_normal);
   vec3 to_eye = -incident;
   float n_dot_v = dot(normal, to_eye);
   if (n_dot_v <= 0.0) {
