@@ -80,3 +80,11 @@ def animate_location(scene, obj, locations, first_frame=1):
     scene.frame_start = first_frame
     scene.frame_end = first_frame + len(locations) - 1
     scene.frame_set(first_frame)
+
+
+def stability_stage(scene, floor_roughness=0.05):
+    """What the stability cases share: 160x90, a blue-grey world and a metal mirror floor."""
+    set_resolution(scene, 160, 90)
+    set_world(scene, (0.25, 0.3, 0.4))
+    return add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0,
+                    principled("Mirror", base_color=(0.9, 0.9, 0.9), roughness=floor_roughness, metallic=1.0))

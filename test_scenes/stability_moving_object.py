@@ -3,16 +3,13 @@
 Where the block was, the history holds its old reflection; the temporal
 filter must let it go instead of leaving a trail.
 """
-from _common import add_camera, add_mesh, animate_location, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, animate_location, principled, stability_stage
 
 MOTION = "object"
 
 
 def build(scene):
-    set_resolution(scene, 160, 90)
-    set_world(scene, (0.25, 0.3, 0.4))
-    add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0,
-             principled("Mirror", base_color=(0.9, 0.9, 0.9), roughness=0.05, metallic=1.0))
+    stability_stage(scene)
     add_mesh(scene, "cube", "Backdrop", (0.0, 4.0, 1.0), (2.5, 0.1, 1.0),
              principled("Backdrop", base_color=(0.6, 0.6, 0.6), roughness=0.8))
     block = add_mesh(scene, "cube", "Block", (0.0, 2.5, 0.4), (0.3, 0.3, 0.4),

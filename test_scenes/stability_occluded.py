@@ -5,16 +5,13 @@ panel; the mirror floor in front of the panel reflects exactly that covered
 part, which the depth buffer does not hold. SSR must not reflect the board in
 its place or smear the panel's visible edges into it.
 """
-from _common import add_camera, add_mesh, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, principled, stability_stage
 
 MOTION = None
 
 
 def build(scene):
-    set_resolution(scene, 160, 90)
-    set_world(scene, (0.25, 0.3, 0.4))
-    add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0,
-             principled("Mirror", base_color=(0.9, 0.9, 0.9), roughness=0.05, metallic=1.0))
+    stability_stage(scene)
     add_mesh(scene, "cube", "Panel", (0.0, 4.0, 1.0), (2.0, 0.05, 1.0),
              principled("Panel", base_color=(0, 0, 0), emission=(1.0, 0.5, 0.1), emission_strength=3.0))
     add_mesh(scene, "cube", "Board", (0.0, -0.5, 1.0), (0.35, 0.02, 0.3),

@@ -3,16 +3,13 @@
 A march whose steps are wider than the poles steps over them; a stochastic
 march then hits them in some frames and misses them in others (flicker).
 """
-from _common import add_camera, add_mesh, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, principled, stability_stage
 
 MOTION = None
 
 
 def build(scene):
-    set_resolution(scene, 160, 90)
-    set_world(scene, (0.25, 0.3, 0.4))
-    add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0,
-             principled("Mirror", base_color=(0.9, 0.9, 0.9), roughness=0.15, metallic=1.0))
+    stability_stage(scene, floor_roughness=0.15)
     bright = principled("Rail", base_color=(0, 0, 0), emission=(1.0, 0.9, 0.6), emission_strength=4.0)
     for index, x in enumerate((-1.5, -0.5, 0.5, 1.5)):
         add_mesh(scene, "cylinder", f"Pole{index}", (x, 2.5, 0.6), (0.03, 0.03, 0.6), bright)
