@@ -1,6 +1,5 @@
 """The GLSL tracers agree with their numpy oracles, hit for hit, on analytic depth buffers."""
 import numpy as np
-import pytest
 
 from gpu_harness import CLIP_END, CLIP_START, run_synthetic_chain
 from oracles import march_linear, march_pixel_walk, min_pyramid, trace_mirror_rays
