@@ -70,11 +70,8 @@ def write_display_png(path, rgba, scene):
     try:
         image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], dtype=np.float32).ravel())
         with TemporaryChanges() as changes:
-            settings = scene.render.image_settings
-            changes.set(settings, "media_type", "IMAGE")
-            changes.set(settings, "file_format", "PNG")
-            changes.set(settings, "color_mode", "RGBA")
-            changes.set(settings, "color_depth", "8")
+            changes.set_all(scene.render.image_settings, media_type="IMAGE", file_format="PNG",
+                            color_mode="RGBA", color_depth="8")
             image.save_render(path, scene=scene)
     except RuntimeError as error:
         raise SSRError(f"cannot write {path}: {str(error).strip()}") from None

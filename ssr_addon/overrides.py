@@ -16,6 +16,11 @@ class TemporaryChanges:
         self._undo.append(lambda: setattr(owner, attribute, old))
         setattr(owner, attribute, value)
 
+    def set_all(self, owner, **values):
+        """Set several attributes of OWNER, in the given order (media type before format...)."""
+        for attribute, value in values.items():
+            self.set(owner, attribute, value)
+
     def on_restore(self, undo):
         """Register a callable that undoes a change made directly (a new node, a new AOV...)."""
         self._undo.append(undo)

@@ -140,13 +140,9 @@ def _configure_render(scene, view_layer, engine, samples, resolution, changes, e
 
 
 def _render_to_exr(scene, path, changes):
-    settings = scene.render.image_settings
-    changes.set(settings, "media_type", "MULTI_LAYER_IMAGE")
-    changes.set(settings, "file_format", "OPEN_EXR_MULTILAYER")
-    changes.set(settings, "color_depth", "32")
-    changes.set(settings, "exr_codec", "ZIP")
-    changes.set(scene.render, "filepath", path)
-    changes.set(scene.render, "use_file_extension", False)
+    changes.set_all(scene.render.image_settings, media_type="MULTI_LAYER_IMAGE",
+                    file_format="OPEN_EXR_MULTILAYER", color_depth="32", exr_codec="ZIP")
+    changes.set_all(scene.render, filepath=path, use_file_extension=False)
     try:
         bpy.ops.render.render(write_still=True, scene=scene.name)
     except RuntimeError as error:

@@ -394,11 +394,8 @@ def test_compositor_outputs_the_result_and_keeps_post_processing(addon, tmp_path
 def _render_composite(scene, path):
     """F12 render of SCENE, composited, as a float RGBA EXR read back in image order."""
     with TemporaryChanges() as changes:
-        image_settings = scene.render.image_settings
-        changes.set(image_settings, "media_type", "IMAGE")
-        changes.set(image_settings, "file_format", "OPEN_EXR")
-        changes.set(image_settings, "color_mode", "RGBA")
-        changes.set(image_settings, "color_depth", "32")
+        changes.set_all(scene.render.image_settings, media_type="IMAGE", file_format="OPEN_EXR",
+                        color_mode="RGBA", color_depth="32")
         changes.set(scene.render, "filepath", str(path))
         changes.set(scene.render, "use_file_extension", False)
         bpy.ops.render.render(write_still=True, scene=scene.name)
