@@ -19,6 +19,7 @@ from .compositor import (RESULT_IMAGE, SHEET_IMAGE, comparison_sheet, forget_las
 from .errors import SSRError
 from .outputs import prepare_output_folder
 from .overrides import TemporaryChanges
+from .params import PRESETS, SETTINGS_SCHEMA, preset
 from .render_job import RenderRequest, frame_numbers, render_frame, write_frame
 from .scene_io import require_camera
 from .settings import COMPARISON_MODES, chain_settings
@@ -210,6 +211,21 @@ class RENDER_OT_ssr_compare(_ReportsErrors, bpy.types.Operator):
         return {"FINISHED"}
 
 
+class RENDER_OT_ssr_apply_preset(bpy.types.Operator):
+    """Set every SSR setting to a named preset (draft: fastest, high: closest to the reference)"""
+    bl_idname = "render.ssr_apply_preset"
+    bl_label = "Apply SSR Preset"
+    bl_options = {"REGISTER", "UNDO"}
+
+    preset: bpy.props.EnumProperty(name="Preset", items=[(name, name.title(), "") for name in PRESETS])
+
+    def execute(self, context):
+        values = preset(self.preset)
+        for spec in SETTINGS_SCHEMA:
+            setattr(context.scene.ssr, spec.name, getattr(values, spec.name))
+        return {"FINISHED"}
+
+
 class RENDER_OT_ssr_setup_compositor(_ReportsErrors, bpy.types.Operator):
     """Make the compositor output the "SSR Result" image, so F12 and compositing work on it"""
     bl_idname = "render.ssr_setup_compositor"
@@ -226,7 +242,7 @@ class RENDER_OT_ssr_setup_compositor(_ReportsErrors, bpy.types.Operator):
 
 
 classes = (RENDER_OT_ssr_render_frame, RENDER_OT_ssr_render_animation, RENDER_OT_ssr_compare,
-           RENDER_OT_ssr_setup_compositor)
+           RENDER_OT_ssr_apply_preset, RENDER_OT_ssr_setup_compositor)
 
 
 def register():

@@ -192,6 +192,15 @@ def _other_value(spec):
     return type(spec.default)(value if value != spec.default else low)
 
 
+def test_presets_set_every_setting(addon):
+    from ssr_addon.params import preset
+    from ssr_addon.settings import chain_settings
+    scene = bpy.context.scene
+    for name in ("high", "draft"):
+        assert bpy.ops.render.ssr_apply_preset(preset=name) == {"FINISHED"}
+        assert chain_settings(scene.ssr) == _float32(preset(name))
+
+
 def test_chain_settings_round_trip(addon):
     scene_settings = bpy.context.scene.ssr
     expected = ChainSettings(**{spec.name: _other_value(spec) for spec in SETTINGS_SCHEMA})
@@ -249,6 +258,7 @@ class _Recorder:
 
     def operator(self, idname, **kwargs):
         self.log.append(("operator", idname, self.enabled))
+        return SimpleNamespace()  # the operator's properties, which draw code may set
 
 
 def _draw(panel, method, scene):
@@ -266,7 +276,8 @@ def test_render_panels_draw_every_setting_and_grey_out_with_a_reason(addon):
     drawn = [entry[1] for panel in sub_panels for entry in _draw(panel, "draw", scene) if entry[0] == "prop"]
     assert sorted(drawn) == sorted(spec.name for spec in SETTINGS_SCHEMA if spec.name != "use_ssr")
     assert _draw(panels.RENDER_PT_ssr, "draw_header", scene) == [("prop", "use_ssr", True, False)]
-    assert _draw(panels.RENDER_PT_ssr, "draw", scene) == []
+    presets = [("label", "Preset")] + [("operator", "render.ssr_apply_preset", True)] * 3
+    assert _draw(panels.RENDER_PT_ssr, "draw", scene) == presets
 
     scene.render.engine = "BLENDER_WORKBENCH"
     assert ("label", "Needs the EEVEE or Cycles render engine") in _draw(panels.RENDER_PT_ssr, "draw", scene)
@@ -283,7 +294,8 @@ def test_sidebar_offers_modes_debug_view_operators_and_overlay(addon):
     assert ("prop", "comparison_mode", True, True) in log
     assert {entry[1] for entry in log if entry[0] == "prop"} >= {"debug_view", "show_overlay", "probe_object"}
     operators_drawn = {entry[1] for entry in log if entry[0] == "operator"}
-    assert operators_drawn == {cls.bl_idname for cls in operators.classes}
+    # Every operator but the presets, which sit in the Render properties panel.
+    assert operators_drawn == {cls.bl_idname for cls in operators.classes} - {"render.ssr_apply_preset"}
     scene.ssr.show_overlay = True  # its update redraws 3D views: none here
     scene.camera = None
     log = _draw(panels.VIEW3D_PT_ssr, "draw", scene)

@@ -6,6 +6,7 @@ The settings sub-panels are generated from the schema's groups
 """
 import bpy
 
+from ..params import PRESETS
 from ..settings import ENABLE_FIELD, grouped_fields
 
 
@@ -37,6 +38,11 @@ class RENDER_PT_ssr(SSRRenderPanelMixin, bpy.types.Panel):
         reason = self.unavailable_reason(context.scene)
         if reason is not None:
             self.layout.label(text=reason, icon="ERROR")
+        row = self.layout.row(align=True)
+        row.active = reason is None
+        row.label(text="Preset")
+        for name in PRESETS:
+            row.operator("render.ssr_apply_preset", text=name.title()).preset = name
 
 
 def _draw_group(self, context):
