@@ -112,15 +112,16 @@ def render_frame(scene, request, state=None):
     timer.lap("upload")
     outputs = run_chain(inputs, request.settings, state or ChainState(), timer)
     scale = 2 if request.settings.half_resolution else 1
+    ray_stats = download(outputs.ray_stats_tx)
     images.update(
         final=download(outputs.final_tx),
         reflection=download(outputs.reflection_tx),
         history_count=download(outputs.history_count_tx, 1)[..., 0] if outputs.history_count_tx else None,
         ray_hit=upsample_nearest(download(outputs.ray_hit_tx), scale, (height, width)),
         ray_dir=upsample_nearest(download(outputs.ray_dir_tx), scale, (height, width)),
-        ray_stats=upsample_nearest(download(outputs.ray_stats_tx), scale, (height, width)))
+        ray_stats=upsample_nearest(ray_stats, scale, (height, width)))
     timer.lap("readback")
-    ray_class = download(outputs.ray_stats_tx, 1)[..., 0]
+    ray_class = ray_stats[..., 0]  # one entry per traced ray, before upsampling
     traced = np.count_nonzero(ray_class > 0)
     images["stats"] = {"iterations": outputs.iterations,
                        "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4)
