@@ -42,6 +42,7 @@ def main():
     stage_ms = {}
     with tempfile.TemporaryDirectory() as folder:
         for frame in range(1, arguments.frames + 1):
+            state.begin_frame(frame)
             images, timer = render_frame(scene, request, state)
             if not arguments.no_write:
                 write_frame(folder, 1, images, scene)  # one frame's files, overwritten each time

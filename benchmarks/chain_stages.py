@@ -15,7 +15,7 @@ from ssr_addon.chain import ChainInputs, ChainState, run_chain
 from ssr_addon.gpu_backend import StageTimer
 from ssr_addon.params import PRESETS, preset
 
-STAGES = ("hiz", "color_pyramid", "trace", "resolve", "temporal", "composite")
+STAGES = ("hiz", "color_pyramid", "trace", "resolve", "spatial", "temporal", "composite")
 
 
 def main():
@@ -30,9 +30,11 @@ def main():
         settings = preset(name)
         inputs = ChainInputs.from_passes(passes, settings)
         state = ChainState()
+        state.begin_frame(0)
         run_chain(inputs, settings, state)  # compiles shaders, fills the history
         timings = {stage: [] for stage in STAGES}
-        for _ in range(arguments.frames):
+        for frame in range(1, arguments.frames + 1):
+            state.begin_frame(frame)
             timer = StageTimer()
             run_chain(inputs, settings, state, timer)
             for stage in STAGES:

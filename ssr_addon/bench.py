@@ -34,7 +34,7 @@ from .outputs import prepare_output_folder, write_exr, write_json, written_toget
 from .overrides import TemporaryChanges
 from .params import PRESETS, STAGE_TOGGLES, ChainSettings
 from .passes import DEFAULT_SAMPLES
-from .render_job import HALTON_INDICES_PER_FRAME, RenderRequest, parse_resolution, render_frame, run_render
+from .render_job import RenderRequest, parse_resolution, render_frame, run_render
 from .scene_io import load_scene
 from .shaders import get_pass
 
@@ -555,7 +555,7 @@ def run_contenders(scene, contenders, options):
     for frame in range(scene.frame_current, scene.frame_current + options.frames):
         for contender in contenders:
             state = states[contender.name]
-            state.frame_index = frame * HALTON_INDICES_PER_FRAME
+            state.begin_frame(frame)
             request = RenderRequest(out_dir=options.out_dir, method=contender.method, resolution=options.resolution,
                                     samples=options.eevee_samples, settings=contender.settings)
             images, timer = render_frame(scene, request, state)

@@ -14,8 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .gpu_backend import TexturePool, upload
-from .shaders import DFG_SIZE, MAX_PYRAMID_LEVELS, get_pass, pack_params
+from .frame_sequence import FrameSequence
+from .gpu_backend import TexturePool, uniform_buffer, upload
+from .gpu_params import MAX_PYRAMID_LEVELS
+from .shaders import DFG_SIZE, get_pass
 
 
 @dataclass
@@ -77,16 +79,28 @@ def ray_budget(roughness, depth, clip_end, settings):
 
 @dataclass
 class ChainState:
-    """What the chain keeps between frames: textures by role, temporal history, the frame counter."""
+    """What the chain keeps between frames: textures by role, the frame sequence (sample
+    indices and history slots), the last camera."""
     pool: TexturePool = field(default_factory=TexturePool)
-    history: tuple = None                 # (filtered_tx, count_tx) of the last frame, or None
+    sequence: FrameSequence = field(default_factory=FrameSequence)
     previous_world_to_clip: np.ndarray = None
-    frame_index: int = 0
     dfg_tx: object = None                 # the FG table, computed once
 
+    @classmethod
+    def still(cls):
+        """State for stills: each frame accumulates its own iterations, nothing carries over."""
+        return cls(sequence=FrameSequence(still=True))
+
+    def begin_frame(self, frame, camera=None):
+        """Start FRAME (seen through CAMERA); returns True when the temporal history carries over."""
+        continues = self.sequence.start_frame(frame, camera)
+        if not continues:
+            self.previous_world_to_clip = None
+        return continues
+
     def reset_history(self):
-        """Forget the past (camera cut, jump in the frame range)."""
-        self.history = None
+        """Forget the past (a failed frame): the next frame starts afresh."""
+        self.sequence.forget()
         self.previous_world_to_clip = None
 
 
@@ -95,6 +109,8 @@ class ChainOutputs:
     ray_hit_tx: object        # traced rays: (hit uv, pdf, confidence)
     ray_dir_tx: object        # (view direction, hit distance)
     ray_stats_tx: object      # (ray class, iterations, highest Hi-Z level, 0)
+    resolved_tx: object       # the resolve's (premultiplied radiance, confidence), last iteration
+    spatial_tx: object        # the same after the spatial filter (the resolve's own with the filter off)
     reflection_tx: object     # (premultiplied reflected radiance, confidence), after the temporal filter
     history_count_tx: object  # frames accumulated per pixel
     final_tx: object          # composited image
@@ -145,11 +161,51 @@ def _lap(timer, stage, texture):
         timer.lap(stage, texture)
 
 
+def chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous_world_to_clip,
+                 hiz_rects, color_rects):
+    """The uniform block of one iteration, every field by name (gpu_params.PARAMS_FIELDS)."""
+    view = np.asarray(inputs.view_matrix, np.float64)
+    projection = np.asarray(inputs.projection_matrix, np.float64)
+    history_frames = 1.0 / (1.0 - settings.temporal_weight)
+    return uniform_buffer({
+        "view_to_clip": projection, "clip_to_view": np.linalg.inv(projection),
+        "world_to_view": view, "view_to_world": np.linalg.inv(view),
+        "previous_world_to_clip": previous_world_to_clip,
+        "viewport_size": size, "pixel_size": (1.0 / size[0], 1.0 / size[1]), "trace_size": trace_size,
+        "trace_scale": 2 if settings.half_resolution else 1,
+        "sample_index": iteration.sample_index, "quad_phase": iteration.quad_phase,
+        "noise_seed": iteration.noise_seed,
+        "clip_start": inputs.clip_start, "clip_end": inputs.clip_end,
+        "expensive_roughness": inputs.ray_budget[0], "expensive_tie_fraction": inputs.ray_budget[1],
+        "hiz_levels": len(hiz_rects) if settings.use_hiz else 0, "hiz_max_iterations": settings.hiz_max_iterations,
+        "thickness": settings.thickness, "max_distance": settings.max_distance,
+        "trace_stride": settings.trace_stride, "trace_steps": settings.trace_steps,
+        "refine_steps": settings.refine_steps, "border_fade": settings.border_fade,
+        "camera_facing_fade": settings.camera_facing_fade, "max_roughness": settings.max_roughness,
+        "use_importance_sampling": settings.use_importance_sampling, "resolve_samples": settings.resolve_samples,
+        "use_cone_filter": settings.use_cone_filter, "color_levels": len(color_rects),
+        "use_firefly_guard": settings.use_firefly_guard, "denoise_radius": settings.denoise_radius,
+        "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,
+        "history_frames": history_frames,
+        "static_history_frames": max(history_frames, settings.accumulate_frames),
+        "spatial_step": 1,
+        "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
+    })
+
+
+def _level_rects(rects):
+    packed = np.zeros((MAX_PYRAMID_LEVELS, 4), np.float32)
+    packed[:len(rects)] = rects
+    return packed
+
+
 def run_chain(inputs, settings, state, timer=None):
     """Run the chain on one frame; returns ChainOutputs and updates STATE's history.
 
-    With no history (a still, or the first frame after a cut) the temporal filter
-    accumulates `accumulate_frames` jittered iterations of trace and resolve.
+    The caller starts the frame first (state.begin_frame). With no history (a
+    still, or an animation's first frame after a cut) the frame runs the
+    sequence's first iterations (FrameSequence.iteration_count) and the
+    temporal filter averages them; with history, one iteration is blended in.
     """
     size = inputs.size
     scale = 2 if settings.half_resolution else 1
@@ -163,21 +219,17 @@ def run_chain(inputs, settings, state, timer=None):
                                           None if settings.use_cone_filter else 1)
     _lap(timer, "color_pyramid", color_tx)
 
-    view, projection = inputs.view_matrix, inputs.projection_matrix
-    world_to_clip = np.asarray(projection, np.float64) @ np.asarray(view, np.float64)
-    use_history = settings.use_temporal and state.history is not None
-    iterations = 1 if use_history or not settings.use_temporal else settings.accumulate_frames
-    if not use_history:
-        state.reset_history()
-    # An animation keeps an exponential window of 1 / (1 - weight) frames; a still
-    # averages every one of its iterations.
-    history_frames = max(1.0 / (1.0 - settings.temporal_weight), iterations)
-    for iteration in range(iterations):
-        has_history = state.history is not None
-        history_mode = 0 if not has_history else (2 if iteration > 0 else 1)
-        previous = state.previous_world_to_clip if has_history else world_to_clip
-        params = pack_params(inputs.camera, previous, size, trace_size, state.frame_index,
-                             inputs.ray_budget, hiz_rects, color_rects, history_mode, history_frames, settings)
+    world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
+    sequence = state.sequence
+    iterations = sequence.iteration_count(settings)
+    for iteration_in_frame in range(iterations):
+        iteration = sequence.next_iteration(keeps_history=settings.use_temporal)
+        has_history = iteration.read_slot is not None
+        history_mode = 0 if not has_history else (2 if iteration_in_frame > 0 else 1)
+        previous = state.previous_world_to_clip if has_history and state.previous_world_to_clip is not None \
+            else world_to_clip
+        params = chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous,
+                              hiz_rects, color_rects)
         blocks = (("params", params),)
         if state.dfg_tx is None:
             state.dfg_tx = pool.get("dfg", (DFG_SIZE, DFG_SIZE))
@@ -192,35 +244,43 @@ def run_chain(inputs, settings, state, timer=None):
             uniform_blocks=blocks)
         _lap(timer, "trace", ray_hit_tx)
 
-        reflection_tx = pool.get("reflection", size)
+        resolved_tx = pool.get("reflection", size)
         reflection_hit_tx = pool.get("reflection_hit", size)
         get_pass("resolve").draw(
-            [reflection_tx, reflection_hit_tx],
+            [resolved_tx, reflection_hit_tx],
             samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
                       ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
                       ("color_tx", color_tx)),
             uniform_blocks=blocks)
-        _lap(timer, "resolve", reflection_tx)
+        _lap(timer, "resolve", resolved_tx)
 
+        spatial_tx = resolved_tx
+        if settings.use_spatial_filter:
+            spatial_tx = pool.get("reflection_spatial", size)
+            get_pass("denoise_spatial").draw(
+                [spatial_tx],
+                samplers=(("reflection_tx", resolved_tx), ("reflection_hit_tx", reflection_hit_tx),
+                          ("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
+                          ("roughness_tx", inputs.roughness_tx)),
+                uniform_blocks=blocks)
+            _lap(timer, "spatial", spatial_tx)
+
+        reflection_tx, history_count_tx = spatial_tx, None
         if settings.use_temporal:
-            # Ping-pong: write into the pair the last frame did not write.
-            parity = state.frame_index % 2
-            filtered_tx = pool.get(f"history{parity}", size)
-            count_tx = pool.get(f"history_count{parity}", size)
-            history_tx, history_count_tx = state.history or (reflection_tx, reflection_hit_tx)
+            filtered_tx = pool.get(f"history{iteration.write_slot}", size)
+            count_tx = pool.get(f"history_count{iteration.write_slot}", size)
+            history_tx, history_count_in_tx = (
+                (pool.get(f"history{iteration.read_slot}", size), pool.get(f"history_count{iteration.read_slot}", size))
+                if has_history else (spatial_tx, reflection_hit_tx))  # not read without history
             get_pass("temporal").draw(
                 [filtered_tx, count_tx],
-                samplers=(("reflection_tx", reflection_tx), ("reflection_hit_tx", reflection_hit_tx),
+                samplers=(("reflection_tx", spatial_tx), ("reflection_hit_tx", reflection_hit_tx),
                           ("depth_tx", inputs.depth_tx), ("motion_tx", inputs.motion_tx),
-                          ("history_tx", history_tx), ("history_count_tx", history_count_tx)),
+                          ("history_tx", history_tx), ("history_count_tx", history_count_in_tx)),
                 uniform_blocks=blocks)
             _lap(timer, "temporal", filtered_tx)
-            state.history = (filtered_tx, count_tx)
             reflection_tx, history_count_tx = filtered_tx, count_tx
-        else:
-            history_count_tx = None
         state.previous_world_to_clip = world_to_clip
-        state.frame_index += 1
 
     final_tx = pool.get("final", size)
     get_pass("composite").draw(
@@ -233,5 +293,5 @@ def run_chain(inputs, settings, state, timer=None):
         uniform_blocks=blocks)
     _lap(timer, "composite", final_tx)
     return ChainOutputs(ray_hit_tx=ray_hit_tx, ray_dir_tx=ray_dir_tx, ray_stats_tx=ray_stats_tx,
-                        reflection_tx=reflection_tx, history_count_tx=history_count_tx,
+                        resolved_tx=resolved_tx, spatial_tx=spatial_tx, reflection_tx=reflection_tx, history_count_tx=history_count_tx,
                         final_tx=final_tx, iterations=iterations)

@@ -12,6 +12,7 @@ import numpy as np
 from gpu.types import GPUShaderCreateInfo, GPUStageInterfaceInfo
 
 from .errors import SSRError
+from .gpu_params import pack_params
 
 _FORMATS = {1: "R32F", 2: "RG32F", 4: "RGBA32F"}
 _backend_ready = False
@@ -88,6 +89,11 @@ def download(texture, channels=None):
     return np.ascontiguousarray(pixels)
 
 
+def uniform_buffer(fields):
+    """A GPU uniform buffer holding the chain's parameter block (gpu_params) with FIELDS."""
+    return gpu.types.GPUUniformBuf(pack_params(fields).tobytes())
+
+
 class FullscreenPass:
     """One fragment shader drawn over its whole target, declared with GPUShaderCreateInfo.
 
@@ -116,7 +122,12 @@ class FullscreenPass:
 
     def draw(self, targets, samplers=(), uniform_blocks=(), constants=(), region=None):
         """Render into TARGETS (textures of one size); samplers, blocks and int-vector
-        constants are (name, value) pairs; REGION (x, y, width, height) limits the draw."""
+        constants are (name, value) pairs; REGION (x, y, width, height) limits the draw.
+
+        A texture may not be both sampled and drawn into: OpenGL leaves that undefined.
+        """
+        drawn_and_sampled = [name for name, texture in samplers if any(texture is target for target in targets)]
+        assert not drawn_and_sampled, f"pass '{self.name}' samples {drawn_and_sampled} while drawing into it"
         framebuffer = gpu.types.GPUFrameBuffer(color_slots=tuple(targets))
         with framebuffer.bind():
             gpu.state.viewport_set(*(region or (0, 0, targets[0].width, targets[0].height)))

@@ -128,6 +128,7 @@ class RENDER_OT_ssr_render_animation(_ReportsErrors, bpy.types.Operator):
         state = ChainState()
         for frame in frame_numbers(scene, request.frames):
             scene.frame_set(frame)
+            state.begin_frame(frame, scene.camera.name if scene.camera else None)
             images, _ = render_mode(scene, scene.ssr.comparison_mode, request, state, **_baseline_choices(scene))
             write_frame(request.out_dir, frame, images, scene)
             publish_result(images, scene.ssr.debug_view)

@@ -4,6 +4,7 @@ Pure Python (no bpy) so the chain, the CLI and the tests share it. The
 PropertyGroup in `settings.py` is generated from SETTINGS_SCHEMA, so a setting
 is declared exactly once; metadata["group"] places it in a panel.
 """
+import math
 from dataclasses import dataclass, field, fields, replace
 
 from .errors import SSRError
@@ -45,6 +46,15 @@ class ChainSettings:
     use_cone_filter: bool = _setting(
         True, "Read each reused ray as a cone from a colour pyramid, wider with roughness and distance",
         group="resolve")
+    use_firefly_guard: bool = _setting(
+        True, "Average the reused rays' colours tone-mapped, so one bright ray cannot dominate a pixel",
+        group="resolve")
+    use_spatial_filter: bool = _setting(
+        True, "Smooth the resolved reflection over each pixel's lobe footprint, stopping at depth, "
+        "normal and roughness edges", group="resolve")
+    denoise_radius: float = _setting(
+        8.0, "Spatial filter: widest radius in pixels (a pixel's lobe footprint sets its own)", 1.0, 32.0,
+        group="resolve")
     # Temporal
     use_temporal: bool = _setting(
         True, "Blend with the previous frames' reflections, reprojected through both frames' cameras",
@@ -57,7 +67,7 @@ class ChainSettings:
     temporal_weight: float = _setting(
         0.9, "Largest share of the history in a temporally filtered pixel", 0.0, 0.99, group="temporal")
     accumulate_frames: int = _setting(
-        4, "Stills: jittered iterations accumulated by the temporal filter (animation frames add one each)",
+        16, "Stills: jittered iterations accumulated; animations: most frames a pixel that holds still averages",
         1, 256, group="temporal")
     # Fading
     max_roughness: float = _setting(
@@ -100,6 +110,8 @@ def _parse_value(spec, raw):
             value = kind(raw)
     except ValueError:
         raise SSRError(f"--set {spec.name}={raw}: not a valid {kind.__name__}") from None
+    if kind is float and not math.isfinite(value):
+        raise SSRError(f"--set {spec.name}={raw}: must be a finite number")
     if items and value not in [item[0] for item in items]:
         raise SSRError(f"--set {spec.name}={raw}: expected one of {', '.join(item[0] for item in items)}")
     low, high = spec.metadata["min"], spec.metadata["max"]
@@ -111,14 +123,15 @@ def _parse_value(spec, raw):
 SETTINGS_SCHEMA = fields(ChainSettings)
 
 # Switches that turn one stage of the chain off (the bench switches each off in turn).
-STAGE_TOGGLES = ("use_hiz", "use_importance_sampling", "half_resolution", "use_cone_filter", "use_temporal")
+STAGE_TOGGLES = ("use_hiz", "use_importance_sampling", "half_resolution", "use_cone_filter", "use_firefly_guard",
+                 "use_spatial_filter", "use_temporal")
 
 PRESETS = {
     "draft": {"half_resolution": True, "resolve_samples": 4, "expensive_ray_budget": 0.1,
-              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_frames": 1},
+              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_frames": 4},
     "balanced": {},
     "high": {"half_resolution": False, "resolve_samples": 9, "expensive_ray_budget": 1.0,
-             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_frames": 16},
+             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_frames": 64},
 }
 
 

@@ -30,10 +30,9 @@ EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}
 OUTPUT_SUFFIXES = (".exr", ".png", ".passes.exr")
 # Frames re-rendered (not written) before the first missing frame of a resumed run, so
 # its temporal history is as warm as an uninterrupted run's (the filter averages ~10).
+# The frame sequence draws a frame's random numbers from its number alone, so the
+# re-rendered frames trace the same rays as an uninterrupted run did.
 RESUME_WARMUP_FRAMES = 8
-# Halton indices per frame: a frame's random numbers depend on its number alone, so a
-# resumed run draws the same rays as an uninterrupted one.
-HALTON_INDICES_PER_FRAME = 256
 
 
 @dataclass
@@ -95,8 +94,9 @@ def frame_numbers(scene, frames):
 def render_frame(scene, request, state=None):
     """Render the scene's current frame as REQUEST asks; returns (images, StageTimer).
 
-    STATE (a ChainState) carries temporal history from the previous frame; a
-    fresh one means a still, accumulated over `accumulate_frames` iterations.
+    STATE (a ChainState) carries temporal history from the previous frame; the
+    caller has begun the frame in it (state.begin_frame). Without one the frame
+    is a still, accumulated over `accumulate_frames` iterations.
     """
     timer = StageTimer()
     use_ssr = request.method == "ssr" and request.settings.use_ssr
@@ -110,12 +110,17 @@ def render_frame(scene, request, state=None):
     ensure_backend()
     inputs = ChainInputs.from_passes(passes, request.settings)
     timer.lap("upload")
-    outputs = run_chain(inputs, request.settings, state or ChainState(), timer)
+    if state is None:
+        state = ChainState.still()
+        state.begin_frame(scene.frame_current)
+    outputs = run_chain(inputs, request.settings, state, timer)
     scale = 2 if request.settings.half_resolution else 1
     ray_stats = download(outputs.ray_stats_tx)
     images.update(
         final=download(outputs.final_tx),
         reflection=download(outputs.reflection_tx),
+        resolved=download(outputs.resolved_tx),
+        spatial=download(outputs.spatial_tx),
         history_count=download(outputs.history_count_tx, 1)[..., 0] if outputs.history_count_tx else None,
         ray_hit=upsample_nearest(download(outputs.ray_hit_tx), scale, (height, width)),
         ray_dir=upsample_nearest(download(outputs.ray_dir_tx), scale, (height, width)),
@@ -145,6 +150,7 @@ def pass_channels(images):
         value = images.get(name)
         return value if value is not None else np.zeros((height, width, channels), np.float32)
     reflection, ray_hit = intermediate("reflection", 4), intermediate("ray_hit", 4)
+    resolved, spatial = intermediate("resolved", 4), intermediate("spatial", 4)
     ray_dir, ray_stats = intermediate("ray_dir", 4), intermediate("ray_stats", 4)
     history = images.get("history_count")
     channels = {}
@@ -161,6 +167,10 @@ def pass_channels(images):
     layer("Specular Indirect", passes.specular_indirect, "RGB")
     layer("SSR Reflection", reflection, "RGB")  # premultiplied by confidence: what FG multiplies
     layer("SSR Confidence", reflection[..., 3], "V")
+    # The stages before the temporal filter, last iteration: the resolve (firefly guard
+    # included) and the spatial filter, each premultiplied radiance and confidence.
+    layer("SSR Resolve", resolved, "RGBA")
+    layer("SSR Spatial", spatial, "RGBA")
     layer("SSR Hit", ray_hit, "UV")
     layer("SSR Ray PDF", ray_hit[..., 2], "V")
     layer("SSR Hit Distance", ray_dir[..., 3], "V")
@@ -250,15 +260,12 @@ def run_render(scene, scene_path, request, log=print, progress_stream=None):
         log(f"resuming at frame {first_missing}: {len(frames) - len(todo)} complete frames kept, "
             f"history re-warmed over {len(warmup)} frames")
     progress = None  # started at the first written frame, so warm-up does not skew the ETA
-    state = ChainState()
-    previous = None  # (frame, camera name) of the last frame rendered
+    # One frame is a still (accumulated until converged); a range is an animation whose
+    # history carries from frame to frame, reset on a jump in the range or a camera cut.
+    state = ChainState.still() if len(frames) == 1 else ChainState()
     for frame in warmup + todo:
         scene.frame_set(frame)
-        camera_key = (frame, scene.camera.name if scene.camera else None)
-        if previous is None or frame != previous[0] + 1 or camera_key[1] != previous[1]:
-            state.reset_history()  # first frame, a jump in the range, or a camera cut
-        previous = camera_key
-        state.frame_index = frame * HALTON_INDICES_PER_FRAME
+        state.begin_frame(frame, scene.camera.name if scene.camera else None)
         if frame == first_missing:
             progress = FrameProgress(len(todo), progress_stream)
         try:
@@ -273,7 +280,6 @@ def run_render(scene, scene_path, request, log=print, progress_stream=None):
             log(f"frame {frame} failed: {error}; going on (--on-error skip)")
             report["failed_frames"].append({"frame": frame, "error": str(error)})
             state.reset_history()
-            previous = None
             progress.frame_done(frame, "failed")
             write_json(report_path, report)
             continue

@@ -18,7 +18,7 @@ def gpu_table(gpu_backend):
     from ssr_addon.chain import ChainState
     from ssr_addon.gpu_backend import download
     depth, normal, projection = facing_plane(8, 8)
-    state = ChainState()
+    state = ChainState.still()
     run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, ChainSettings(), state=state)
     return download(state.dfg_tx)[::-1, :, :2]  # rows: roughness upwards, as the numpy table
 
@@ -52,7 +52,8 @@ def test_fg_from_the_f0_aov_matches_eevee_specular_colour(gpu_backend):
     from ssr_addon.chain import ChainInputs, ChainState, run_chain
     from ssr_addon.gpu_backend import download
     settings = ChainSettings(accumulate_frames=1)
-    state = ChainState()
+    state = ChainState.still()
+    state.begin_frame(1)
     run_chain(ChainInputs.from_passes(passes, settings), settings, state)
     table = download(state.dfg_tx)[::-1, :, :2]
     # FG per pixel: F0 * A + B at the pixel's n.v and roughness (nearest texel).

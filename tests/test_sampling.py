@@ -50,17 +50,6 @@ def test_rays_keep_their_pdf_at_oblique_views(gpu_backend):
     np.testing.assert_allclose(arrays["ray_hit"][traced][:, 2], expected, rtol=5e-3)
 
 
-def test_halton_sequence_advances_every_frame(gpu_backend):
-    from ssr_addon.chain import ChainState
-    depth, normal, projection = facing_plane(32, 32)
-    state = ChainState()
-    settings = ChainSettings(max_roughness=1.0, **ONE_RAY_PER_PIXEL)
-    first, _ = run_synthetic_chain(depth, normal, np.full_like(depth, 0.5), projection, settings, state=state)
-    second, _ = run_synthetic_chain(depth, normal, np.full_like(depth, 0.5), projection, settings, state=state)
-    assert state.frame_index == 2
-    assert not np.allclose(first["ray_dir"], second["ray_dir"])
-
-
 def smooth_radiance(depth):
     """A radiance buffer that varies smoothly across the screen, so a wrong hit shows."""
     height, width = depth.shape

@@ -9,12 +9,12 @@
 /* The texel under a screen position in full-resolution pixels, kept on screen. */
 ivec2 texel_at(vec2 position_px)
 {
-  return clamp(ivec2(floor(position_px)), ivec2(0), ivec2(params.viewport.xy) - 1);
+  return clamp(ivec2(floor(position_px)), ivec2(0), ivec2(params.viewport_size) - 1);
 }
 
 bool is_background(float depth)
 {
-  return depth >= params.clip.y;
+  return depth >= params.clip_end;
 }
 
 /* Camera ray through a screen position (uv in [0,1]^2): near-plane point and direction. */
@@ -50,7 +50,7 @@ vec3 view_normal(vec3 world_normal)
 float pixel_footprint(float depth)
 {
   bool orthographic = params.view_to_clip[3][3] == 1.0;
-  return 2.0 / (params.view_to_clip[1][1] * params.viewport.y) * (orthographic ? 1.0 : depth);
+  return 2.0 / (params.view_to_clip[1][1] * params.viewport_size.y) * (orthographic ? 1.0 : depth);
 }
 
 /* PCG hash: decorrelates pixels (Cranley-Patterson rotation of the Halton points). */
@@ -61,9 +61,10 @@ uint pcg_hash(uint value)
   return (word >> 22u) ^ word;
 }
 
-vec2 pixel_noise(ivec2 pixel)
+/* Two uniform numbers per pixel and SEED (0: the pixel's fixed rotation). */
+vec2 pixel_noise(ivec2 pixel, uint seed_offset)
 {
-  uint seed = pcg_hash(uint(pixel.x) + pcg_hash(uint(pixel.y)));
+  uint seed = pcg_hash(uint(pixel.x) + pcg_hash(uint(pixel.y) + pcg_hash(seed_offset)));
   return vec2(seed & 0xffffu, seed >> 16u) / 65536.0;
 }
 

@@ -34,7 +34,7 @@ void main()
   if (!(reflection.a > 0.0)) {
     return; /* no reflection (NaN included): the engine's image as it is */
   }
-  vec2 uv = (vec2(texel) + 0.5) * params.viewport.zw;
+  vec2 uv = (vec2(texel) + 0.5) * params.pixel_size;
   vec3 normal = view_normal(texelFetch(normal_tx, texel, 0).xyz);
   float n_dot_v = clamp(dot(normal, -view_incident(uv)), 0.0, 1.0);
   vec3 fg = fg_term(texelFetch(f0_tx, texel, 0).rgb, n_dot_v, texelFetch(roughness_tx, texel, 0).r);

@@ -91,9 +91,10 @@ float halton(uint index, uint base)
   return result;
 }
 
-/* The frame's Halton (2, 3) point, rotated per pixel so neighbours differ. */
-vec2 sample_point(ivec2 pixel, float frame_index)
+/* Point INDEX of the Halton (2, 3) sequence, rotated per pixel (Cranley-Patterson)
+ * so neighbours differ. The rotation is fixed per pixel while the index moves,
+ * so each pixel's points over time keep the sequence's even spread. */
+vec2 sample_point(ivec2 pixel, uint index)
 {
-  uint index = uint(frame_index) + 1u;
-  return fract(vec2(halton(index, 2u), halton(index, 3u)) + pixel_noise(pixel));
+  return fract(vec2(halton(index + 1u, 2u), halton(index + 1u, 3u)) + pixel_noise(pixel, 0u));
 }

@@ -38,14 +38,14 @@ float march_hiz(ScreenRay ray, out float iterations, out float highest_level)
   float major_px = max(abs(ray.delta_px.x), abs(ray.delta_px.y));
   /* A nudge of 1/256 pixel moves a position on a cell boundary into the next cell. */
   float t_nudge = major_px > 0.0 ? (1.0 / 256.0) / major_px : 1.0;
-  int top_level = int(params.frame.w) - 1;
-  float thickness = params.march.x;
+  int top_level = params.hiz_levels - 1;
+  float thickness = params.thickness;
   int level = 0;
   /* Leave the origin pixel first: a surface does not reflect itself. */
   float t = cell_exit(ray, floor(ray.start_px), 1.0) + t_nudge;
   iterations = 0.0;
   highest_level = 0.0;
-  while (t < t_exit && iterations < params.stages.w) {
+  while (t < t_exit && iterations < float(params.hiz_max_iterations)) {
     iterations += 1.0;
     float size = exp2(float(level));
     vec2 cell = floor(ray_position_px(ray, t) / size);

@@ -13,12 +13,12 @@ float march_linear(ScreenRay ray, out float steps_taken)
   steps_taken = 0.0;
   float t_exit = screen_exit(ray);
   float major_px = max(abs(ray.delta_px.x), abs(ray.delta_px.y)) * t_exit;
-  float steps = min(params.march.w, ceil(major_px / params.march.z));
+  float steps = min(float(params.trace_steps), ceil(major_px / params.trace_stride));
   if (steps < 1.0) {
     return -1.0;
   }
   float dt = t_exit / steps;
-  float thickness = params.march.x;
+  float thickness = params.thickness;
   float ray_front = ray_depth_at(ray, 0.0);
   for (int i = 1; i <= int(steps); i++) {
     float t = dt * float(i);
@@ -30,7 +30,7 @@ float march_linear(ScreenRay ray, out float steps_taken)
     ray_front = ray_back;
     if (hit) {
       float t_front = t - dt, t_behind = t;
-      for (int j = 0; j < int(params.shaping.x); j++) {
+      for (int j = 0; j < params.refine_steps; j++) {
         float t_mid = 0.5 * (t_front + t_behind);
         if (ray_depth_at(ray, t_mid) > scene_depth_at(ray, t_mid)) {
           t_behind = t_mid;

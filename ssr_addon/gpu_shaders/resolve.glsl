@@ -11,7 +11,21 @@
  * where l_k runs from this pixel to ray k's hit and p_k is the pdf ray k was
  * drawn with. The FG factor is applied by the composite. Rays that missed
  * count in the denominator only through the confidence: confidence is the
- * share of the BRDF weight whose rays found a trustworthy hit. */
+ * share of the BRDF weight whose rays found a trustworthy hit.
+ *
+ * Firefly guard (params.use_firefly_guard; Karis 2014, EEVEE's denoiser): the
+ * hits' colours are averaged tone-mapped, c / (1 + max(c)), and mapped back, so
+ * one bright ray among dim ones cannot dominate a pixel. */
+
+vec3 tonemap(vec3 color)
+{
+  return color / (1.0 + max(max(color.r, color.g), color.b));
+}
+
+vec3 tonemap_inverse(vec3 color)
+{
+  return color / max(1.0 - max(max(color.r, color.g), color.b), 1e-4);
+}
 
 const ivec2 NEIGHBOURS[9] = ivec2[9](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(1, 1), ivec2(-1, 0),
                                      ivec2(0, -1), ivec2(-1, 1), ivec2(1, -1), ivec2(-1, -1));
@@ -21,14 +35,14 @@ const ivec2 NEIGHBOURS[9] = ivec2[9](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec
 vec3 hit_radiance(vec2 hit_uv, float hit_distance, float pdf, float ray_count)
 {
   float level = 0.0;
-  if (params.stages.z > 0.0 && params.stages.x > 0.0) {
-    float hit_depth = texelFetch(depth_tx, texel_at(hit_uv * params.viewport.xy), 0).r;
+  if (params.use_cone_filter != 0 && params.use_importance_sampling != 0) {
+    float hit_depth = texelFetch(depth_tx, texel_at(hit_uv * params.viewport_size), 0).r;
     float patch_area = hit_distance * hit_distance / (ray_count * pdf);
     float texel_area = pow(pixel_footprint(hit_depth), 2.0);
-    level = clamp(0.5 * log2(patch_area / texel_area), 0.0, params.temporal.w - 1.0);
+    level = clamp(0.5 * log2(patch_area / texel_area), 0.0, float(params.color_levels) - 1.0);
   }
   int lower = int(floor(level));
-  int upper = min(lower + 1, int(params.temporal.w) - 1);
+  int upper = min(lower + 1, params.color_levels - 1);
   vec3 a = atlas_sample(color_tx, params.color_level[lower], hit_uv).rgb;
   vec3 b = atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb;
   return mix(a, b, level - float(lower));
@@ -41,23 +55,23 @@ void main()
   reflection_hit_img = vec4(0.0);
   float depth = texelFetch(depth_tx, pixel, 0).r;
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
-  float max_roughness = params.shaping.w;
+  float max_roughness = params.max_roughness;
   if (is_background(depth) || roughness > max_roughness) {
     return;
   }
-  vec2 uv = (vec2(pixel) + 0.5) * params.viewport.zw;
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
   vec3 position = view_position(uv, depth);
   vec3 to_eye = -view_incident(uv);
   vec3 normal = view_normal(texelFetch(normal_tx, pixel, 0).xyz);
   float alpha = ggx_alpha(roughness);
 
-  int scale = int(params.trace_viewport.z);
+  int scale = params.trace_scale;
   ivec2 own_texel = pixel / scale;
   /* Mirror the neighbour pattern towards this pixel's side of its quad, so the
    * first four rays are the four nearest. */
   ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
-  ivec2 trace_size = ivec2(params.trace_viewport.xy);
-  int ray_count = int(params.stages.y);
+  ivec2 trace_size = ivec2(params.trace_size);
+  int ray_count = params.resolve_samples;
 
   vec3 radiance_sum = vec3(0.0);
   float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;
@@ -72,7 +86,7 @@ void main()
     vec3 direction = ray.xyz;
     float hit_distance = 0.0;
     if (hit.w > 0.0) {
-      float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport.xy), 0).r;
+      float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport_size), 0).r;
       vec3 to_hit = view_position(hit.xy, hit_depth) - position;
       hit_distance = length(to_hit);
       direction = to_hit / max(hit_distance, 1e-6);
@@ -81,7 +95,8 @@ void main()
     weight_sum += weight;
     if (hit.w > 0.0 && weight > 0.0) {
       float hit_weight = weight * hit.w;
-      radiance_sum += hit_weight * hit_radiance(hit.xy, hit_distance, hit.z, float(ray_count));
+      vec3 radiance = hit_radiance(hit.xy, hit_distance, hit.z, float(ray_count));
+      radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(radiance) : radiance);
       hit_weight_sum += hit_weight;
       distance_sum += hit_weight * hit_distance;
       hit_uv_sum += hit_weight * hit.xy;
@@ -92,9 +107,14 @@ void main()
     return;
   }
   /* Confidence fades to zero over the top fifth of [0, max_roughness] so the
-   * switch to the probe/world reflection leaves no seam. */
-  float roughness_fade = 1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness);
+   * switch to the probe/world reflection leaves no seam (max_roughness 0: mirrors only). */
+  float roughness_fade = max_roughness > 0.0 ?
+                             1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness) : 1.0;
   float confidence = hit_weight_sum / weight_sum * roughness_fade;
-  reflection_img = vec4(radiance_sum / hit_weight_sum * confidence, confidence);
+  vec3 radiance = radiance_sum / hit_weight_sum;
+  if (params.use_firefly_guard != 0) {
+    radiance = tonemap_inverse(radiance);
+  }
+  reflection_img = vec4(radiance * confidence, confidence);
   reflection_hit_img = vec4(distance_sum, hit_uv_sum, 0.0) / hit_weight_sum;
 }

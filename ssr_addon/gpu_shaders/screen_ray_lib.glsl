@@ -10,8 +10,8 @@ struct ScreenRay {
 
 ScreenRay project_ray(vec3 origin, vec3 direction)
 {
-  float ray_length = params.march.y;
-  float near_z = -params.clip.x;
+  float ray_length = params.max_distance;
+  float near_z = -params.clip_start;
   if (direction.z > 0.0) {
     /* Stop just short of the near plane: points behind the camera do not project. */
     ray_length = min(ray_length, 0.99 * (near_z - origin.z) / direction.z);
@@ -24,8 +24,8 @@ ScreenRay project_ray(vec3 origin, vec3 direction)
   ray.k1 = 1.0 / h1.w;
   ray.q0 = origin * ray.k0;
   ray.q1 = end * ray.k1;
-  ray.start_px = (h0.xy * ray.k0 * 0.5 + 0.5) * params.viewport.xy;
-  ray.delta_px = (h1.xy * ray.k1 * 0.5 + 0.5) * params.viewport.xy - ray.start_px;
+  ray.start_px = (h0.xy * ray.k0 * 0.5 + 0.5) * params.viewport_size;
+  ray.delta_px = (h1.xy * ray.k1 * 0.5 + 0.5) * params.viewport_size - ray.start_px;
   return ray;
 }
 
@@ -36,7 +36,7 @@ float screen_exit(ScreenRay ray)
   for (int axis = 0; axis < 2; axis++) {
     float delta = ray.delta_px[axis];
     if (delta > 0.0) {
-      t_exit = min(t_exit, (params.viewport[axis] - ray.start_px[axis]) / delta);
+      t_exit = min(t_exit, (params.viewport_size[axis] - ray.start_px[axis]) / delta);
     }
     else if (delta < 0.0) {
       t_exit = min(t_exit, -ray.start_px[axis] / delta);
@@ -75,13 +75,13 @@ float scene_depth_at(ScreenRay ray, float t)
 float border_fade(vec2 uv)
 {
   float distance_to_edge = min(min(uv.x, 1.0 - uv.x), min(uv.y, 1.0 - uv.y));
-  return params.shaping.y > 0.0 ? clamp(distance_to_edge / params.shaping.y, 0.0, 1.0) : 1.0;
+  return params.border_fade > 0.0 ? clamp(distance_to_edge / params.border_fade, 0.0, 1.0) : 1.0;
 }
 
 /* Rays heading back to the camera reach what the depth buffer cannot show. */
 float camera_facing_fade(vec3 incident, vec3 direction)
 {
   float towards_camera = dot(direction, -incident);
-  float fade = params.shaping.z;
+  float fade = params.camera_facing_fade;
   return fade > 0.0 ? clamp((1.0 - towards_camera) / fade, 0.0, 1.0) : 1.0;
 }

@@ -9,23 +9,34 @@
  *                           highest Hi-Z level reached; 0).
  *
  * With half-resolution tracing each texel traces from one pixel of its 2x2
- * quad, a different one every frame. Smooth pixels (roughness below the
- * budget's threshold) get expensive Hi-Z rays, the rest cheap linear rays. */
+ * quad, params.quad_phase, so all four originate a ray in four iterations
+ * (frame_sequence.py). Smooth pixels (roughness below the budget's threshold)
+ * get expensive Hi-Z rays, the rest cheap linear rays; ties at the threshold
+ * toss a coin of their own, drawn afresh every iteration. */
 
 ivec2 ray_origin_pixel(ivec2 texel)
 {
-  int scale = int(params.trace_viewport.z);
-  /* The quad pixel rotates through a 2x2 pattern over four frames. */
-  int phase = int(params.frame.x) & 3;
+  int scale = params.trace_scale;
+  int phase = params.quad_phase;
   ivec2 offset = scale > 1 ? ivec2(phase & 1, (phase >> 1) ^ (phase & 1)) : ivec2(0);
-  return min(texel * scale + offset, ivec2(params.viewport.xy) - 1);
+  return min(texel * scale + offset, ivec2(params.viewport_size) - 1);
 }
 
 bool is_expensive(float roughness, ivec2 pixel)
 {
-  float threshold = params.frame.y;
+  float threshold = params.expensive_roughness;
   /* Ties at the threshold (large areas of one roughness) share the rest of the budget. */
-  return roughness < threshold || (roughness == threshold && pixel_noise(pixel).x < params.frame.z);
+  return roughness < threshold ||
+         (roughness == threshold && pixel_noise(pixel, params.noise_seed).x < params.expensive_tie_fraction);
+}
+
+/* This pixel's point of the frame sequence. A pixel originates a ray every
+ * trace_scale^2 iterations, so it steps through the sequence at that rate: its
+ * own rays take the sequence's points in order, strata filled evenly. */
+vec2 lobe_sample(ivec2 pixel)
+{
+  uint rays_per_pixel = uint(params.trace_scale * params.trace_scale);
+  return sample_point(pixel, params.sample_index / rays_per_pixel);
 }
 
 void main()
@@ -36,10 +47,10 @@ void main()
   ivec2 pixel = ray_origin_pixel(ivec2(gl_FragCoord.xy));
   float depth = texelFetch(depth_tx, pixel, 0).r;
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
-  if (is_background(depth) || roughness > params.shaping.w) {
+  if (is_background(depth) || roughness > params.max_roughness) {
     return;
   }
-  vec2 uv = (vec2(pixel) + 0.5) * params.viewport.zw;
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
   vec3 origin = view_position(uv, depth);
   vec3 incident = view_incident(uv);
   vec3 world_normal = texelFetch(normal_tx, pixel, 0).xyz;
@@ -55,11 +66,11 @@ void main()
 
   vec3 direction;
   float pdf;
-  if (params.stages.x > 0.0) {
+  if (params.use_importance_sampling != 0) {
     float alpha = ggx_alpha(roughness);
     mat3 frame = tangent_frame(normal);
     vec3 half_vector = frame * sample_visible_normal(transpose(frame) * to_eye, alpha,
-                                                     sample_point(pixel, params.frame.x));
+                                                     lobe_sample(pixel));
     direction = reflect(incident, half_vector);
     pdf = visible_normal_pdf(n_dot_v, max(dot(normal, half_vector), 0.0), alpha);
   }
@@ -73,7 +84,7 @@ void main()
     return; /* sampled below the surface: a ray with no light */
   }
 
-  bool expensive = params.frame.w > 0.0 && is_expensive(roughness, pixel);
+  bool expensive = params.hiz_levels > 0 && is_expensive(roughness, pixel);
   ray_stats_img.x = expensive ? 2.0 : 1.0;
   ScreenRay ray = project_ray(origin, direction);
   float iterations, highest_level = 0.0;
@@ -83,7 +94,7 @@ void main()
     return;
   }
   vec2 hit_px = ray_position_px(ray, t);
-  vec2 hit_uv = hit_px * params.viewport.zw;
+  vec2 hit_uv = hit_px * params.pixel_size;
   vec3 hit_normal = view_normal(texelFetch(normal_tx, texel_at(hit_px), 0).xyz);
   if (dot(hit_normal, direction) > 0.0) {
     return; /* back face: the ray hit the far side of a surface */

@@ -1,0 +1,110 @@
+"""The chain's uniform block `params`: one schema for its GLSL struct and its std140 bytes.
+
+Every parameter a pass reads is a named field here, so a shader says
+`params.sample_index`, not `params.frame.x` with the meaning in a comment, and
+the Python side packs by name: a field missing from `pack_params` is an error.
+"""
+import numpy as np
+
+MAX_PYRAMID_LEVELS = 16
+
+# (GLSL type, name, comment); arrays as "vec4[N]". std140 offsets are computed below.
+PARAMS_FIELDS = (
+    ("mat4", "view_to_clip", "camera projection"),
+    ("mat4", "clip_to_view", "its inverse"),
+    ("mat4", "world_to_view", "camera view matrix"),
+    ("mat4", "view_to_world", "its inverse"),
+    ("mat4", "previous_world_to_clip", "last frame's view-projection, for temporal reprojection"),
+    ("vec2", "viewport_size", "full resolution in pixels"),
+    ("vec2", "pixel_size", "1 / viewport_size"),
+    ("vec2", "trace_size", "traced rays along each axis"),
+    ("int", "trace_scale", "pixels per traced ray along each axis (1 or 2)"),
+    ("uint", "sample_index", "this iteration's index in the low-discrepancy sequence"),
+    ("int", "quad_phase", "which pixel of each 2x2 quad originates this iteration's ray (0..3)"),
+    ("uint", "noise_seed", "changes every iteration: decorrelates the ray-class coin over time"),
+    ("float", "clip_start", "camera near clip"),
+    ("float", "clip_end", "depth at or past it is background"),
+    ("float", "expensive_roughness", "pixels smoother than this get expensive (Hi-Z) rays"),
+    ("float", "expensive_tie_fraction", "share of pixels at exactly that roughness that do"),
+    ("int", "hiz_levels", "levels in the min-depth pyramid (0: no Hi-Z tracing)"),
+    ("int", "hiz_max_iterations", "most cell visits per Hi-Z ray"),
+    ("float", "thickness", "assumed depth of every surface, scene units"),
+    ("float", "max_distance", "longest ray, scene units"),
+    ("float", "trace_stride", "shortest linear-march step, pixels"),
+    ("int", "trace_steps", "most linear-march depth tests"),
+    ("int", "refine_steps", "binary-search steps after a linear-march hit"),
+    ("float", "border_fade", "fade hits this close to the screen border (fraction of the screen)"),
+    ("float", "camera_facing_fade", "fade rays pointing back at the camera"),
+    ("float", "max_roughness", "rougher pixels keep the probe/world reflection"),
+    ("int", "use_importance_sampling", "GGX lobe samples (1) or mirror directions (0)"),
+    ("int", "resolve_samples", "rays each pixel reuses in the resolve"),
+    ("int", "use_cone_filter", "read hits as cones from the colour pyramid"),
+    ("int", "color_levels", "levels in the colour pyramid"),
+    ("int", "use_firefly_guard", "resolve in tone-mapped space, c / (1 + max(c))"),
+    ("float", "denoise_radius", "spatial filter radius in pixels at roughness max_roughness"),
+    ("int", "reproject_hit", "temporal filter reprojects the hit point (1) or the surface (0)"),
+    ("int", "history_mode", "0 no history, 1 an animation's (clamped), 2 a still's own iterations (unclamped)"),
+    ("float", "history_frames", "most frames a moving pixel averages"),
+    ("float", "static_history_frames", "most frames a pixel that holds still averages"),
+    ("int", "spatial_step", "the spatial filter's pass: tap spacing in pixels"),
+    ("int", "_pad0", ""),
+    (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
+    (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
+)
+
+# std140: (base alignment, size) in 4-byte words.
+_LAYOUT = {"float": (1, 1), "int": (1, 1), "uint": (1, 1), "vec2": (2, 2), "vec4": (4, 4), "mat4": (4, 16)}
+
+
+def _layout():
+    """{name: (type, word offset, word count)} and the block's size in words."""
+    offsets, cursor = {}, 0
+    for glsl_type, name, _ in PARAMS_FIELDS:
+        base, _, count = glsl_type.partition("[")
+        alignment, size = _LAYOUT[base]
+        if count:
+            alignment, size = 4, 4 * int(count.rstrip("]"))  # array elements are vec4-aligned
+        cursor = -(-cursor // alignment) * alignment
+        offsets[name] = (base, cursor, size)
+        cursor += size
+    return offsets, -(-cursor // 4) * 4
+
+
+OFFSETS, BLOCK_WORDS = _layout()
+
+
+def glsl_struct():
+    """The SSRParams struct, for GPUShaderCreateInfo.typedef_source."""
+    lines = [f"#define MAX_PYRAMID_LEVELS {MAX_PYRAMID_LEVELS}", "struct SSRParams {"]
+    for glsl_type, name, comment in PARAMS_FIELDS:
+        base, _, count = glsl_type.partition("[")
+        declaration = f"{base} {name}[{count}" if count else f"{glsl_type} {name}"
+        lines.append(f"  {declaration};" + (f" /* {comment} */" if comment else ""))
+    lines.append("};")
+    return "\n".join(lines) + "\n"
+
+
+def pack_params(values):
+    """The std140 bytes of SSRParams from {field: value}; every field but the padding is required.
+
+    Matrices are given in numpy (row-major) convention and stored column-major, as GLSL reads them.
+    """
+    words = np.zeros(BLOCK_WORDS, np.uint32)
+    as_float = words.view(np.float32)
+    as_int = words.view(np.int32)
+    missing = [name for name in OFFSETS if name not in values and not name.startswith("_")]
+    unknown = [name for name in values if name not in OFFSETS]
+    if missing or unknown:
+        raise KeyError(f"SSRParams: missing {missing}, unknown {unknown}")
+    for name, value in values.items():
+        base, offset, size = OFFSETS[name]
+        if base == "mat4":
+            as_float[offset:offset + size] = np.asarray(value, np.float64).T.ravel()
+        elif base == "int":
+            as_int[offset] = int(value)
+        elif base == "uint":
+            words[offset] = int(value) & 0xFFFFFFFF
+        else:
+            flat = np.asarray(value, np.float64).ravel()
+            as_float[offset:offset + flat.size] = flat
+    return words
