@@ -73,7 +73,8 @@ SEAM_LIMIT = 0.5
 # brightness, with nothing moving (the temporal filter off measures about 0.06 on the thin case).
 FLICKER_LIMIT = 0.05
 
-ACCURACY_METRICS = ("flip_reflective", "flip_all", "psnr_reflective", "psnr_all", "ssim_reflective", "ssim_all")
+ACCURACY_METRICS = ("flip_reflective", "flip_all", "mae_reflective", "psnr_reflective", "psnr_all",
+                    "ssim_reflective", "ssim_all")
 README_START = "<!-- bench:start -->"
 README_END = "<!-- bench:end -->"
 
@@ -194,8 +195,16 @@ def flip_error(reference, image, mask):
     return float(flip_map(reference, image)[mask].mean()) if mask.any() else None
 
 
+def relative_mae(reference, image, mask):
+    """Mean absolute error over MASK relative to the reference's mean there; None where empty."""
+    if not mask.any():
+        return None
+    return float(np.abs(image[mask] - reference[mask]).mean() / max(np.abs(reference[mask]).mean(), 1e-6))
+
+
 def accuracy(reference, image, mask):
-    """FLIP, PSNR and SSIM against the reference, on the reflective pixels and the whole image."""
+    """FLIP, PSNR and SSIM against the reference, on the reflective pixels and the whole image, and
+    the relative mean absolute error (linear radiance) on the reflective pixels."""
     from skimage.metrics import structural_similarity
     error = flip_map(reference, image)
     shown_reference, shown = display(reference), display(image)
@@ -206,7 +215,7 @@ def accuracy(reference, image, mask):
     def psnr(selection):
         return float(10 * np.log10(1.0 / max(squared[selection].mean(), 1e-12)))
     everywhere = np.ones_like(mask)
-    scores = {}
+    scores = {"mae_reflective": relative_mae(reference, image, mask)}
     for region, selection in (("reflective", mask), ("all", everywhere)):
         empty = not selection.any()
         scores[f"flip_{region}"] = None if empty else float(error[selection].mean())
@@ -636,6 +645,37 @@ def run_bench(options, log=print):
     return report
 
 
+# The issue's goal: our balanced preset's error on reflective pixels at most this share of
+# EEVEE's own screen-space ray tracing's, on every scene.
+VERSUS_EEVEE_GOAL = 0.8
+
+
+def versus_eevee(rows, ours="ssr balanced", theirs="eevee-rt"):
+    """Per scene: (FLIP ours, FLIP theirs, rel. MAE ours, rel. MAE theirs) on reflective pixels."""
+    by_key = {(row["scene"], row["contender"]): row for row in rows}
+    table = {}
+    for scene in dict.fromkeys(row["scene"] for row in rows):
+        mine, other = by_key.get((scene, ours)), by_key.get((scene, theirs))
+        if mine and other and None not in (mine["flip_reflective"], other["flip_reflective"]):
+            table[scene] = (mine["flip_reflective"], other["flip_reflective"],
+                            mine["mae_reflective"], other["mae_reflective"])
+    return table
+
+
+def _versus_eevee_lines(report):
+    table = versus_eevee(report["results"])
+    if not table:
+        return []
+    lines = ["", f"Per scene, `ssr balanced` against EEVEE's screen-space ray tracing (`eevee-rt`) on the "
+                 f"reflective pixels; the goal is a ratio of at most {VERSUS_EEVEE_GOAL}:", "",
+             "| scene | FLIP ours | FLIP eevee-rt | ratio | rel. MAE ours | rel. MAE eevee-rt | ratio |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for scene, (flip_ours, flip_eevee, mae_ours, mae_eevee) in table.items():
+        lines.append(f"| {scene} | {flip_ours:.4f} | {flip_eevee:.4f} | {flip_ours / flip_eevee:.2f} | "
+                     f"{mae_ours:.4f} | {mae_eevee:.4f} | {mae_ours / mae_eevee:.2f} |")
+    return lines
+
+
 def summarise_contenders(contenders, rows, copy_ms):
     """One entry per contender: its means over the scenes and whether it is on the Pareto front."""
     summary = []
@@ -855,14 +895,16 @@ def readme_block(report, out_dir, readme_dir):
         "",
         f"![speed vs accuracy]({folder}/speed_vs_accuracy.png)",
         "",
-        "| contender | ms/frame | ×copy | FLIP refl. | FLIP all | PSNR refl. | SSIM refl. | Pareto |",
-        "|---|---:|---:|---:|---:|---:|---:|:-:|",
+        "| contender | ms/frame | ×copy | FLIP refl. | rel. MAE refl. | FLIP all | PSNR refl. | SSIM refl. | Pareto |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|:-:|",
     ]
     for entry in report["contenders"]:
         lines.append(f"| {entry['name']} | {entry['frame_ms']:.0f} | {entry['frame_x_copy']:.0f} | "
-                     f"{_cell(entry['flip_reflective'], 4)} | {_cell(entry['flip_all'], 4)} | "
+                     f"{_cell(entry['flip_reflective'], 4)} | {_cell(entry['mae_reflective'], 4)} | "
+                     f"{_cell(entry['flip_all'], 4)} | "
                      f"{_cell(entry['psnr_reflective'], 2)} | {_cell(entry['ssim_reflective'], 3)} | "
                      f"{'✓' if entry['pareto'] else ''} |")
+    lines += _versus_eevee_lines(report)
     ours = [e for e in report["contenders"] if e["method"] == "ssr"]
     if ours:
         stages = [s for s in ours[0]["stages_ms"] if s != "render"]

@@ -8,16 +8,21 @@
  *          (mean hit distance and uv), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
  *          history_tx (last output: premultiplied radiance, confidence), history_count_tx (frames in it).
  * Outputs: filtered_img (premultiplied radiance, confidence),
- *          count_img (frames accumulated; where the history was read, in pixels; 0).
+ *          count_img (frames accumulated; where the history was read, in pixels;
+ *                     motion seen: the larger Vector-pass length at the pixel and at its hit).
  *
- * In an animation (history_mode 1) the history is clipped to this frame's
- * 3x3 neighbourhood, mean +- 1.25 standard deviations (Salvi's variance
- * clipping): stale history (disocclusion, moving objects) is rejected, while
- * a converged history on a noisy frame is left alone. A pixel whose history
- * lies exactly where it is (camera and hit both still) keeps averaging up to
- * static_history_frames, so a still shot converges; a moving one averages
- * history_frames = 1 / (1 - temporal_weight). A still's own iterations
- * (history_mode 2) share one camera and scene and are averaged unclipped.
+ * A pixel holds still when the camera did not move it (its history lies exactly
+ * where it is) and the Vector pass shows no motion at it or at its hit, now or
+ * in the history (which records the motion it saw). Such a pixel's history is
+ * still right: it keeps averaging, unclipped, up to static_history_frames, so
+ * a still shot converges to what a long still shows. Anything else in an
+ * animation (history_mode 1) clips the history to this frame's 3x3
+ * neighbourhood, mean +- 1.25 standard deviations (Salvi's variance
+ * clipping), which rejects stale history (disocclusion, moving objects), and
+ * averages at most history_frames = 1 / (1 - temporal_weight). Recording the
+ * motion in the history catches what a still pixel cannot show by itself: the
+ * floor a moving ball uncovers, the reflection of the place the ball left. A
+ * still's own iterations (history_mode 2) share one camera and scene. 
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
@@ -75,13 +80,25 @@ vec4 variance_clip(ivec2 pixel, vec4 history)
   return clamp(history, mean - VARIANCE_CLIP_GAMMA * deviation, mean + VARIANCE_CLIP_GAMMA * deviation);
 }
 
+/* Screen motion in pixels at the pixel or its hit, the larger (0 where nothing moves). */
+float motion_seen(ivec2 pixel)
+{
+  float motion = length(texelFetch(motion_tx, pixel, 0).xy);
+  vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
+  if (hit.x > 0.0) {
+    motion = max(motion, length(texelFetch(motion_tx, texel_at(hit.yz * params.viewport_size), 0).xy));
+  }
+  return is_finite(vec4(motion)) ? motion : 1e6;
+}
+
 void main()
 {
   ivec2 pixel = ivec2(gl_FragCoord.xy);
   vec4 current = texelFetch(reflection_tx, pixel, 0);
   current = is_finite(current) ? current : vec4(0.0);
+  float motion = motion_seen(pixel);
   filtered_img = current;
-  count_img = vec4(1.0, 0.0, 0.0, 0.0);
+  count_img = vec4(1.0, 0.0, 0.0, motion);
   float depth = texelFetch(depth_tx, pixel, 0).r;
   if (params.history_mode == 0 || is_background(depth)) {
     return;
@@ -92,17 +109,19 @@ void main()
     return; /* off screen last frame (or not a number): no history */
   }
   vec4 history = textureLod(history_tx, previous_uv, 0.0);
-  float history_count = textureLod(history_count_tx, previous_uv, 0.0).x;
+  vec4 history_record = textureLod(history_count_tx, previous_uv, 0.0);
+  float history_count = history_record.x;
   if (!is_finite(history) || !(history_count >= 1.0)) {
     return;
   }
   bool holds_still = params.history_mode == 2 ||
-                     all(lessThan(abs(previous_uv - uv) * params.viewport_size, vec2(0.01)));
-  if (params.history_mode == 1) {
+                     (all(lessThan(abs(previous_uv - uv) * params.viewport_size, vec2(0.01))) &&
+                      max(motion, history_record.w) < 0.01);
+  if (!holds_still) {
     history = variance_clip(pixel, history);
   }
   float most_frames = holds_still ? params.static_history_frames : params.history_frames;
   float count = min(history_count + 1.0, most_frames);
   filtered_img = mix(history, current, 1.0 / count);
-  count_img = vec4(count, previous_uv * params.viewport_size, 0.0);
+  count_img = vec4(count, previous_uv * params.viewport_size, motion);
 }
