@@ -24,7 +24,7 @@ test: $(STAMP)
 
 # Regenerates docs/bench/ and the README's chart and table.
 bench: $(STAMP)
-	$(PY) -m ssr_addon bench --scenes mirror_floor rough_spheres --resolution 160x90 --out docs/bench --readme README.md
+	$(PY) -m ssr_addon bench --scenes mirror_floor rough_spheres curved_mirror rolling_ball wet_street --resolution 160x90 --out docs/bench --readme README.md
 
 bench-chain: $(STAMP)
 	$(PY) benchmarks/chain_stages.py

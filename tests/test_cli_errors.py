@@ -26,6 +26,8 @@ def error_lines(result):
     ("bad resolution", ["--resolution", "320by180"], "--resolution"),
     ("bad setting", ["--set", "thickness=thick"], "thickness"),
     ("unknown setting", ["--set", "colour=1"], "colour"),
+    ("not a number", ["--set", "thickness=nan"], "finite"),
+    ("infinite setting", ["--set", "max_distance=inf"], "finite"),
 ])
 def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
     scene = {"missing file": tmp_path / "absent.blend",

@@ -198,3 +198,22 @@ def test_hit_point_reprojection_matches_the_analytic_mirror_image(gpu_backend):
     assert checked.sum() > 200
     error = np.linalg.norm(read_px[checked] - expected_px[checked], axis=-1)
     assert np.percentile(error, 99) < 0.5, f"history read up to {error.max():.2f} px from the mirror image"
+
+
+def test_mirror_only_cutoff_and_non_finite_radiance_stay_finite(gpu_backend):
+    """max_roughness=0 traces mirrors only (its fade has no width), and a NaN/Inf patch in the
+    lit scene never reaches the history: every output of a 4-frame run is finite."""
+    depth, normal, projection = corridor(48, 32)
+    roughness = np.where(np.arange(48)[None, :] < 24, 0.0, 0.3).astype(np.float32) + np.zeros_like(depth)
+    radiance = np.ones((32, 48, 4), np.float32)
+    radiance[2:8, 10:20] = np.nan
+    radiance[2:8, 30:40] = np.inf
+    state = animation_state()
+    for _ in range(4):
+        arrays, _ = run_synthetic_chain(depth, normal, roughness, projection, ChainSettings(max_roughness=0.0),
+                                        radiance, state=state)
+    for name in ("reflection", "history_count"):
+        assert np.isfinite(arrays[name]).all(), name
+    confidence = arrays["reflection"][..., 3]
+    assert (confidence[roughness > 0] == 0).all()
+    assert (confidence[(roughness == 0) & (normal[..., 1] > 0.5)] > 0).mean() > 0.5

@@ -53,6 +53,14 @@ float pixel_footprint(float depth)
   return 2.0 / (params.view_to_clip[1][1] * params.viewport_size.y) * (orthographic ? 1.0 : depth);
 }
 
+/* No NaN or Inf in any component. Read from the exponent bits: comparisons and isnan()
+ * may be folded away by a compiler that assumes finite maths (Mesa's does). */
+bool is_finite(vec4 value)
+{
+  uvec4 exponent = floatBitsToUint(value) & 0x7f800000u;
+  return all(notEqual(exponent, uvec4(0x7f800000u)));
+}
+
 /* PCG hash: decorrelates pixels (Cranley-Patterson rotation of the Halton points). */
 uint pcg_hash(uint value)
 {

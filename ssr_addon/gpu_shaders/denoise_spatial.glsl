@@ -63,7 +63,7 @@ void main()
                      pow(max(dot(normal, tap_normal), 0.0), 32.0) *
                      exp(-abs(tap_roughness - roughness) * 20.0);
       vec4 value = texelFetch(reflection_tx, tap, 0);
-      if (weight > 0.0 && all(lessThan(abs(value), vec4(1e30)))) {
+      if (weight > 0.0 && is_finite(value)) {
         sum += weight * value;
         weight_sum += weight;
       }

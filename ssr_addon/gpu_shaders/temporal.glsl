@@ -27,11 +27,6 @@
 
 #define VARIANCE_CLIP_GAMMA 1.25
 
-bool is_finite(vec4 value)
-{
-  return all(lessThan(abs(value), vec4(1e30))); /* false for NaN too */
-}
-
 /* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
 vec2 previous_screen_position(vec3 view_point)
 {
@@ -88,7 +83,7 @@ float motion_seen(ivec2 pixel)
   if (hit.x > 0.0) {
     motion = max(motion, length(texelFetch(motion_tx, texel_at(hit.yz * params.viewport_size), 0).xy));
   }
-  return is_finite(vec4(motion)) ? motion : 1e6;
+  return is_finite(vec4(motion)) ? motion : 1e6; /* unknown motion: assume it moves */
 }
 
 void main()
