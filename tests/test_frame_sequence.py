@@ -216,4 +216,4 @@ def test_mirror_only_cutoff_and_non_finite_radiance_stay_finite(gpu_backend):
         assert np.isfinite(arrays[name]).all(), name
     confidence = arrays["reflection"][..., 3]
     assert (confidence[roughness > 0] == 0).all()
-    assert (confidence[(roughness == 0) & (normal[..., 1] > 0.5)] > 0).mean() > 0.5
+    assert (confidence[(roughness == 0) & (normal[..., 1] > 0.5)] > 0).sum() > 50, "mirrors keep SSR"
