@@ -50,6 +50,15 @@ class FramePasses:
         return self.depth.shape[1], self.depth.shape[0]
 
 
+def undo_coverage(value, coverage, fallback):
+    """A shader AOV as the surface wrote it: the pixel filter averaged VALUE with the nothing
+    around an edge, by the share COVERAGE the surface covers; FALLBACK where no surface did."""
+    if value.ndim == 3:
+        coverage = coverage[..., None]
+    return np.ascontiguousarray(np.where(coverage > 1e-3, value / np.maximum(coverage, 1e-3), fallback),
+                                dtype=np.float32)
+
+
 def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_raytracing=None,
                   split_lamp_specular=True):
     """Render SCENE's current frame with ENGINE and return its FramePasses.
@@ -86,7 +95,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     aov = _layer(layers, ROUGHNESS_AOV)
     passes_shape = aov.shape[:2]
     coverage = aov[..., 1]
-    roughness = np.where(coverage > 1e-3, aov[..., 0] / np.maximum(coverage, 1e-3), 1.0)
+    roughness = undo_coverage(aov[..., 0], coverage, fallback=1.0)
     normal = _layer(layers, "Normal")
     depth = _layer(layers, "Depth")[..., 0].copy()
     # The world has no normal; its depth is about clip_end in EEVEE (sometimes a hair
@@ -98,7 +107,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         normal=normal,
         roughness=np.clip(roughness, 0.0, 1.0).astype(np.float32),
         specular_color=_layer(layers, "Glossy Color"),
-        f0=np.ascontiguousarray(_layer(layers, F0_AOV)[..., :3]),
+        f0=undo_coverage(_layer(layers, F0_AOV)[..., :3], coverage, fallback=0.0),
         # Cycles has no Vector pass while motion blur is on: then objects count as still.
         motion=np.ascontiguousarray(layers["Vector"][..., :2]) if "Vector" in layers
         else np.zeros(passes_shape + (2,), np.float32),

@@ -101,3 +101,15 @@ def test_passes_have_the_shapes_and_camera_of_the_render(roughness_scene):
     # whose normal faces the camera 5 units above it (orthographic: depth 5).
     assert np.allclose(passes.normal[16, 20], (0, 0, 1), atol=1e-2)
     assert passes.depth[16, 20] == pytest.approx(5.0, abs=1e-2)
+
+
+def test_f0_is_the_surfaces_own_at_antialiased_edges(roughness_scene):
+    """The pixel filter averages an AOV with the sky around an edge; F0, like roughness, is
+    divided by the coverage, so edge pixels read the surface's 0.04, not a darker blend."""
+    passes = render_passes(roughness_scene, "eevee", samples=16)
+    covered = passes.f0.mean(-1) > 1e-4
+    padded = np.pad(covered, 1, constant_values=False)
+    beside_sky = ~(padded[:-2, 1:-1] & padded[2:, 1:-1] & padded[1:-1, :-2] & padded[1:-1, 2:])
+    edges = covered & beside_sky
+    assert edges.sum() > 20, "the planes' silhouettes are antialiased"
+    np.testing.assert_allclose(passes.f0[covered], 0.04, atol=4e-3)
