@@ -17,6 +17,9 @@ from dataclasses import dataclass
 
 STRIDE = 257
 MAX_ITERATIONS = STRIDE - 1
+# An animation's first frame (or the first after a cut) runs one full quad cycle, so every
+# pixel has originated a ray before the first frame is shown; later frames trace once.
+ANIMATION_FIRST_ITERATIONS = 4
 
 
 @dataclass(frozen=True)
@@ -33,9 +36,10 @@ class FrameSequence:
 
     still=True: every frame is a still (a single-frame render, a comparison
     tile): it accumulates `accumulate_frames` iterations with no history from
-    other frames. still=False: an animation: every frame traces once, and the
-    history carries from frame to frame unless the range jumps or the camera
-    cuts (the temporal filter does the accumulating).
+    other frames. still=False: an animation: the first frame runs one quad
+    cycle, every later one traces once, and the history carries from frame to
+    frame unless the range jumps or the camera cuts (the temporal filter does
+    the accumulating).
     """
 
     def __init__(self, still=False):
@@ -65,9 +69,11 @@ class FrameSequence:
 
     def iteration_count(self, settings):
         """Iterations this frame runs (before any has run)."""
-        if self.still and settings.use_temporal:
+        if not settings.use_temporal or self.has_history:
+            return 1
+        if self.still:
             return min(settings.accumulate_frames, MAX_ITERATIONS)
-        return 1
+        return min(ANIMATION_FIRST_ITERATIONS, settings.accumulate_frames)
 
     def next_iteration(self, keeps_history=True):
         """The next iteration of this frame; KEEPS_HISTORY False (temporal filter off) hands out no slots."""

@@ -32,11 +32,11 @@ def relative_error(image, reference, mask):
 @pytest.fixture(scope="module")
 def static_shot(render_scene):
     """The wet street (roughness from a noise texture), camera still: frames 1-8 and a
-    64-iteration still of frame 8."""
+    256-iteration still of frame 8."""
     animation = render_scene("wet_street", "ssr", "--resolution", RESOLUTION, "--samples", EEVEE_SAMPLES,
                              "--frames", f"{FRAMES[0]}-{FRAMES[1]}")
     still = render_scene("wet_street", "ssr", "--resolution", RESOLUTION, "--samples", EEVEE_SAMPLES,
-                         "--frames", str(FRAMES[1]), "--set", "accumulate_frames=64")
+                         "--frames", str(FRAMES[1]), "--set", "accumulate_frames=256")
     passes = still.passes(FRAMES[1])
     mask = bench.reflective_mask(passes["Roughness.V"], rgb(passes, "Specular Color")) & \
         (passes["SSR Confidence.V"] > 0.05)

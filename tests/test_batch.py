@@ -51,7 +51,7 @@ def test_frames_carry_history_and_report_costs(uninterrupted):
     with open(folder / "report.json", encoding="utf-8") as stream:
         report = json.load(stream)
     assert [entry["frame"] for entry in report["frames"]] == [1, 2, 3, 4]
-    # The first frame accumulates a still's iterations, later frames add one each.
+    # The first frame runs one quad cycle (every pixel originates a ray), later frames trace once.
     assert [entry["iterations"] for entry in report["frames"]] == [4, 1, 1, 1]
     assert report["mean_ms_per_frame"]["addon_over_render"] > 0
     assert "x the render" in result.stdout
