@@ -188,7 +188,6 @@ def chain_params(inputs, settings, size, trace_size, iteration, history_mode, pr
         "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,
         "history_frames": history_frames,
         "static_history_frames": max(history_frames, settings.accumulate_frames),
-        "spatial_step": 1,
         "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
     })
 

@@ -46,8 +46,6 @@ PARAMS_FIELDS = (
     ("int", "history_mode", "0 no history, 1 an animation's (clamped), 2 a still's own iterations (unclamped)"),
     ("float", "history_frames", "most frames a moving pixel averages"),
     ("float", "static_history_frames", "most frames a pixel that holds still averages"),
-    ("int", "spatial_step", "the spatial filter's pass: tap spacing in pixels"),
-    ("int", "_pad0", ""),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
 )
@@ -79,20 +77,20 @@ def glsl_struct():
     for glsl_type, name, comment in PARAMS_FIELDS:
         base, _, count = glsl_type.partition("[")
         declaration = f"{base} {name}[{count}" if count else f"{glsl_type} {name}"
-        lines.append(f"  {declaration};" + (f" /* {comment} */" if comment else ""))
+        lines.append(f"  {declaration}; /* {comment} */")
     lines.append("};")
     return "\n".join(lines) + "\n"
 
 
 def pack_params(values):
-    """The std140 bytes of SSRParams from {field: value}; every field but the padding is required.
+    """The std140 bytes of SSRParams from {field: value}; every field is required.
 
     Matrices are given in numpy (row-major) convention and stored column-major, as GLSL reads them.
     """
     words = np.zeros(BLOCK_WORDS, np.uint32)
     as_float = words.view(np.float32)
     as_int = words.view(np.int32)
-    missing = [name for name in OFFSETS if name not in values and not name.startswith("_")]
+    missing = [name for name in OFFSETS if name not in values]
     unknown = [name for name in values if name not in OFFSETS]
     if missing or unknown:
         raise KeyError(f"SSRParams: missing {missing}, unknown {unknown}")
