@@ -43,10 +43,6 @@ class ChainInputs:
     def size(self):
         return self.depth_tx.width, self.depth_tx.height
 
-    @property
-    def camera(self):
-        return self.view_matrix, self.projection_matrix, self.clip_start, self.clip_end
-
     @classmethod
     def from_passes(cls, passes, settings):
         """Upload FramePasses; the lit scene (Combined) is also what reflections show."""
@@ -92,11 +88,9 @@ class ChainState:
         return cls(sequence=FrameSequence(still=True))
 
     def begin_frame(self, frame, camera=None):
-        """Start FRAME (seen through CAMERA); returns True when the temporal history carries over."""
-        continues = self.sequence.start_frame(frame, camera)
-        if not continues:
+        """Start FRAME (seen through CAMERA); the history carries over unless the sequence breaks."""
+        if not self.sequence.start_frame(frame, camera):
             self.previous_world_to_clip = None
-        return continues
 
     def reset_history(self):
         """Forget the past (a failed frame): the next frame starts afresh."""
@@ -225,8 +219,7 @@ def run_chain(inputs, settings, state, timer=None):
         iteration = sequence.next_iteration(keeps_history=settings.use_temporal)
         has_history = iteration.read_slot is not None
         history_mode = 0 if not has_history else (2 if iteration_in_frame > 0 else 1)
-        previous = state.previous_world_to_clip if has_history and state.previous_world_to_clip is not None \
-            else world_to_clip
+        previous = state.previous_world_to_clip if has_history else world_to_clip
         params = chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous,
                               hiz_rects, color_rects)
         blocks = (("params", params),)
@@ -292,5 +285,5 @@ def run_chain(inputs, settings, state, timer=None):
         uniform_blocks=blocks)
     _lap(timer, "composite", final_tx)
     return ChainOutputs(ray_hit_tx=ray_hit_tx, ray_dir_tx=ray_dir_tx, ray_stats_tx=ray_stats_tx,
-                        resolved_tx=resolved_tx, spatial_tx=spatial_tx, reflection_tx=reflection_tx, history_count_tx=history_count_tx,
-                        final_tx=final_tx, iterations=iterations)
+                        resolved_tx=resolved_tx, spatial_tx=spatial_tx, reflection_tx=reflection_tx,
+                        history_count_tx=history_count_tx, final_tx=final_tx, iterations=iterations)

@@ -25,10 +25,6 @@ def reflection_shown(scene_output, frame):
     return scene_output.final(frame) - rgb(scene_output.passes(frame), "Combined")
 
 
-def relative_error(image, reference, mask):
-    return float(np.abs(image[mask] - reference[mask]).mean() / max(np.abs(reference[mask]).mean(), 1e-6))
-
-
 @pytest.fixture(scope="module")
 def static_shot(render_scene):
     """The wet street (roughness from a noise texture), camera still: frames 1-8 and a
@@ -47,7 +43,7 @@ def static_shot(render_scene):
 def test_a_still_camera_converges_over_eight_frames(static_shot):
     animation, still, mask = static_shot
     target = still.final(FRAMES[1])
-    errors = [relative_error(animation.final(frame), target, mask) for frame in range(FRAMES[0], FRAMES[1] + 1)]
+    errors = [bench.relative_mae(target, animation.final(frame), mask) for frame in range(FRAMES[0], FRAMES[1] + 1)]
     print("error against the long still, frames 1-8:", [round(e, 4) for e in errors])
     assert errors[-1] <= 0.6 * errors[0], errors
 
@@ -96,8 +92,8 @@ def rolling_ball(render_scene):
 
 def test_an_animated_frame_is_no_worse_than_a_still_of_it(rolling_ball):
     frame, animated, still, reference, mask = rolling_ball
-    animated_error = relative_error(animated, reference, mask)
-    still_error = relative_error(still, reference, mask)
+    animated_error = bench.relative_mae(reference, animated, mask)
+    still_error = bench.relative_mae(reference, still, mask)
     animated_flip = bench.flip_error(reference, animated, mask)
     still_flip = bench.flip_error(reference, still, mask)
     print(f"frame {frame} against Cycles: animation {animated_error:.4f} (FLIP {animated_flip:.4f}), "

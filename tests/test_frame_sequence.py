@@ -10,7 +10,7 @@ import pytest
 
 from gpu_harness import run_synthetic_chain
 from oracles import ggx_normal_cdf
-from synthetic import corridor, facing_plane, pixel_rays, raycast
+from synthetic import corridor, facing_plane, perspective, pixel_rays, raycast
 from ssr_addon.frame_sequence import STRIDE, FrameSequence
 from ssr_addon.params import ChainSettings
 
@@ -162,7 +162,7 @@ def test_hit_point_reprojection_matches_the_analytic_mirror_image(gpu_backend):
     one G-buffer serves both frames). The history of a floor pixel must be read where the
     previous camera saw the mirror image of the wall point its reflected ray hits."""
     width, height, pan = 64, 40, 0.3
-    depth, normal, projection = corridor(width, height)
+    projection = perspective(width, height)
     wall_only = [((-30.0, -1.0, -9.0), (30.0, 30.0, -8.0))]
     depth, normal = raycast(width, height, projection, wall_only, floor_y=-1.0)
     radiance = np.ones((height, width, 4), np.float32)

@@ -22,7 +22,7 @@
  * averages at most history_frames = 1 / (1 - temporal_weight). Recording the
  * motion in the history catches what a still pixel cannot show by itself: the
  * floor a moving ball uncovers, the reflection of the place the ball left. A
- * still's own iterations (history_mode 2) share one camera and scene. 
+ * still's own iterations (history_mode 2) share one camera and scene.
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
@@ -34,9 +34,9 @@ vec2 previous_screen_position(vec3 view_point)
   return previous_clip.w > 0.0 ? previous_clip.xy / previous_clip.w * 0.5 + 0.5 : vec2(-1.0);
 }
 
-vec2 reprojected_uv(ivec2 pixel, vec2 uv, float depth)
+/* HIT: the resolve's (mean hit distance, mean hit uv) of this pixel. */
+vec2 reprojected_uv(ivec2 pixel, vec2 uv, float depth, vec4 hit)
 {
-  vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
   if (params.history_mode == 2) {
     return uv; /* a still's earlier iteration: same camera, same instant */
   }
@@ -76,10 +76,9 @@ vec4 variance_clip(ivec2 pixel, vec4 history)
 }
 
 /* Screen motion in pixels at the pixel or its hit, the larger (0 where nothing moves). */
-float motion_seen(ivec2 pixel)
+float motion_seen(ivec2 pixel, vec4 hit)
 {
   float motion = length(texelFetch(motion_tx, pixel, 0).xy);
-  vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
   if (hit.x > 0.0) {
     motion = max(motion, length(texelFetch(motion_tx, texel_at(hit.yz * params.viewport_size), 0).xy));
   }
@@ -91,7 +90,8 @@ void main()
   ivec2 pixel = ivec2(gl_FragCoord.xy);
   vec4 current = texelFetch(reflection_tx, pixel, 0);
   current = is_finite(current) ? current : vec4(0.0);
-  float motion = motion_seen(pixel);
+  vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
+  float motion = motion_seen(pixel, hit);
   filtered_img = current;
   count_img = vec4(1.0, 0.0, 0.0, motion);
   float depth = texelFetch(depth_tx, pixel, 0).r;
@@ -99,7 +99,7 @@ void main()
     return;
   }
   vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
-  vec2 previous_uv = reprojected_uv(pixel, uv, depth);
+  vec2 previous_uv = reprojected_uv(pixel, uv, depth, hit);
   if (!(all(greaterThanEqual(previous_uv, vec2(0.0))) && all(lessThanEqual(previous_uv, vec2(1.0))))) {
     return; /* off screen last frame (or not a number): no history */
   }
