@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 OUT ?= out/demo
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench bench-chain bench-memory dist validate clean
+.PHONY: demo test bench bench-stages bench-chain bench-memory dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -22,9 +22,18 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest tests
 
-# Regenerates docs/bench/ and the README's chart and table.
+BENCH_SCENES := mirror_floor glossy_corridor rough_spheres curved_mirror rolling_ball wet_street
+
+# Regenerates docs/bench/ and the README's chart and tables: every scene, the
+# engine alone, EEVEE's ray tracing and our presets (about an hour on llvmpipe).
 bench: $(STAMP)
-	$(PY) -m ssr_addon bench --scenes mirror_floor rough_spheres curved_mirror rolling_ball wet_street --resolution 160x90 --out docs/bench --readme README.md
+	$(PY) -m ssr_addon bench --scenes $(BENCH_SCENES) --resolution 160x90 --out docs/bench --readme README.md \
+		--contenders none 'eevee-rt*' 'ssr draft' 'ssr balanced' 'ssr high'
+
+# What each stage buys: the balanced preset with each stage switched off in turn.
+bench-stages: $(STAMP)
+	$(PY) -m ssr_addon bench --scenes mirror_floor wet_street --resolution 160x90 --out docs/bench-stages \
+		--contenders 'ssr balanced' 'ssr *=off' --no-stability
 
 bench-chain: $(STAMP)
 	$(PY) benchmarks/chain_stages.py

@@ -19,6 +19,7 @@ import fnmatch
 import hashlib
 import json
 import os
+import shlex
 import statistics
 import tempfile
 from dataclasses import dataclass, field, fields, replace
@@ -30,7 +31,7 @@ import OpenImageIO as oiio
 from .chain import ChainState
 from .errors import SSRError
 from .gpu_backend import StageTimer, describe_gpu, empty_texture, ensure_backend
-from .outputs import prepare_output_folder, write_exr, write_json, written_together
+from .outputs import prepare_output_folder, rewrite_readme_block, write_exr, write_json, written_together
 from .overrides import TemporaryChanges
 from .params import PRESETS, STAGE_TOGGLES, ChainSettings
 from .passes import DEFAULT_SAMPLES
@@ -75,8 +76,7 @@ FLICKER_LIMIT = 0.05
 
 ACCURACY_METRICS = ("flip_reflective", "flip_all", "mae_reflective", "psnr_reflective", "psnr_all",
                     "ssim_reflective", "ssim_all")
-README_START = "<!-- bench:start -->"
-README_END = "<!-- bench:end -->"
+README_BLOCK = "bench"  # README.md's generated block: <!-- bench:start --> ... <!-- bench:end -->
 
 
 @dataclass(frozen=True)
@@ -620,6 +620,7 @@ def run_bench(options, log=print):
     report = {
         "blender": bpy.app.version_string, "gpu": describe_gpu(), "resolution": list(options.resolution),
         "scenes": [scene_label(p) for p in scene_paths], "frames_per_contender": options.frames,
+        "contender_patterns": options.contenders,
         "eevee_samples": options.eevee_samples or DEFAULT_SAMPLES["eevee"],
         "timing": "contenders take turns frame by frame; each stage's fastest time over the frames after the "
                   "first (the least disturbed by other processes); a frame's time is the sum of its stages, "
@@ -875,6 +876,11 @@ def chart_stability(stability, path):
     _save_figure(figure, path)
 
 
+def _contenders_argument(report):
+    patterns = report.get("contender_patterns")
+    return " --contenders " + " ".join(shlex.quote(p) for p in patterns) if patterns else ""
+
+
 def readme_block(report, out_dir, readme_dir):
     """Markdown for the README: the chart, the contender table and the stability table."""
     folder = os.path.relpath(out_dir, readme_dir).replace(os.sep, "/")
@@ -882,7 +888,8 @@ def readme_block(report, out_dir, readme_dir):
     copy_ms = report["copy_pass_ms"][f"{width}x{height}"]
     lines = [
         f"Latest run: `python -m ssr_addon bench --scenes {' '.join(report['scenes'])} "
-        f"--resolution {width}x{height} --out {folder} --readme README.md` on Blender {report['blender']}, "
+        f"--resolution {width}x{height} --out {folder} --readme README.md{_contenders_argument(report)}` on "
+        f"Blender {report['blender']}, "
         f"{report['gpu']['renderer']}: a software GPU, so every engine render is slow. Reference: Cycles, "
         f"{report['reference']['samples']} samples; EEVEE: {report['eevee_samples']} samples. Time: wall time "
         f"per frame of the whole method, engine render included (in scenes with lamps SSR needs a second, "
@@ -943,19 +950,9 @@ def _cell(value, digits):
 
 
 def update_readme(readme_path, report, out_dir):
-    """Replace the block between the bench markers in README (adding it under '## Benchmark' if absent)."""
-    with open(readme_path, encoding="utf-8") as stream:
-        text = stream.read()
+    """Replace the bench block in README (adding it under '## Benchmark' if absent)."""
     readme_dir = os.path.dirname(os.path.abspath(readme_path))
-    block = f"{README_START}\n{readme_block(report, out_dir, readme_dir)}\n{README_END}"
-    if README_START in text and README_END in text:
-        head, _, rest = text.partition(README_START)
-        _, _, tail = rest.partition(README_END)
-        text = head + block + tail
-    else:
-        text = text.rstrip("\n") + f"\n\n## Benchmark\n\n{block}\n"
-    with written_together([readme_path]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
-        stream.write(text)
+    rewrite_readme_block(readme_path, README_BLOCK, readme_block(report, out_dir, readme_dir), "Benchmark")
 
 
 def options_from_arguments(arguments):

@@ -95,3 +95,20 @@ def prepare_output_folder(folder):
     for name in os.listdir(folder):  # leftovers of an interrupted run
         if name.startswith(".") and name.endswith(".partial"):
             os.remove(os.path.join(folder, name))
+
+
+def rewrite_readme_block(readme_path, name, body, heading):
+    """Replace README's generated block NAME (between <!-- NAME:start --> and <!-- NAME:end -->)
+    with BODY, or append it under HEADING if absent; the file is replaced whole or not at all."""
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    with open(readme_path, encoding="utf-8") as stream:
+        text = stream.read()
+    block = f"{start}\n{body}\n{end}"
+    if start in text and end in text:
+        head, _, rest = text.partition(start)
+        _, _, tail = rest.partition(end)
+        text = head + block + tail
+    else:
+        text = text.rstrip("\n") + f"\n\n## {heading}\n\n{block}\n"
+    with written_together([readme_path]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
+        stream.write(text)
