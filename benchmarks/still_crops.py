@@ -23,7 +23,7 @@ from ssr_addon.scene_io import load_scene
 RESOLUTION = (1280, 720)
 CROP_SIZE = (320, 180)
 # Left, top corner of each scene's crop as a share of the image: where its reflections are.
-CROP_CORNERS = {"mirror_floor": (0.375, 0.55), "wet_street": (0.375, 0.6), "glossy_corridor": (0.25, 0.6)}
+CROP_CORNERS = {"mirror_floor": (0.375, 0.55), "wet_street": (0.375, 0.48), "glossy_corridor": (0.25, 0.6)}
 CONTENDERS = (("ssr balanced", "ssr"), ("EEVEE ray tracing", "eevee-rt"))
 OUT = os.path.join(REPO, "docs", "crops")
 
