@@ -546,6 +546,7 @@ def test_built_extension_installs_enables_and_disables(tmp_path):
                       if "__pycache__" not in folder for name in files}
     assert any(name.endswith(".glsl") for name in add_on_sources)
     shipped_extras = {name for name in os.listdir(REPO) if name.startswith(("README", "LICENSE"))}
+    assert {"LICENSE", "README.md"} <= shipped_extras, "the manifest's GPL-3.0 needs its text in the zip"
     assert names == {"__init__.py", "blender_manifest.toml"} | add_on_sources | shipped_extras
 
     user_dir = tmp_path / "user"
