@@ -36,6 +36,8 @@ def _build_scene(path):
         sys.path.insert(0, folder)
     try:
         namespace = runpy.run_path(path, run_name="ssr_scene_builder")
+    except SystemExit as error:  # exiting would end the run with nothing rendered, status 0
+        raise SSRError(f"scene builder {path} called sys.exit({error.code}) while loading") from None
     except Exception as error:  # the builder is user code: report, never a traceback
         raise SSRError(f"scene builder {path} failed to load: {type(error).__name__}: {_first_line(error)}") from None
     build = namespace.get("build")
@@ -45,6 +47,8 @@ def _build_scene(path):
     scene = bpy.context.scene
     try:
         build(scene)
+    except SystemExit as error:
+        raise SSRError(f"scene builder {path} called sys.exit({error.code}) in build(scene)") from None
     except Exception as error:
         raise SSRError(f"scene builder {path} failed: {type(error).__name__}: {_first_line(error)}") from None
     return scene

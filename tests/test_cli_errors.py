@@ -11,6 +11,12 @@ def build(scene):
     bpy.ops.mesh.primitive_cube_add()
 """
 NO_BUILD = "x = 1\n"
+EXITS_IN_BUILD = """
+import sys
+def build(scene):
+    sys.exit(0)
+"""
+EXITS_ON_LOAD = "import sys\nsys.exit(3)\n"
 
 
 def error_lines(result):
@@ -21,6 +27,8 @@ def error_lines(result):
     ("missing file", [], "scene file not found"),
     ("no camera", [], "has no active camera"),
     ("no build", [], "defines no build(scene)"),
+    ("exits in build", [], "called sys.exit(0)"),
+    ("exits on load", [], "called sys.exit(3)"),
     ("bad frames", ["--frames", "ten"], "--frames"),
     ("reversed frames", ["--frames", "9-3"], "reversed"),
     ("bad resolution", ["--resolution", "320by180"], "--resolution"),
@@ -32,11 +40,13 @@ def error_lines(result):
 def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
     scene = {"missing file": tmp_path / "absent.blend",
              "no camera": tmp_path / "no_camera.py",
-             "no build": tmp_path / "no_build.py"}.get(case, os.path.join(SCENES, "mirror_floor.py"))
-    if case == "no camera":
-        scene.write_text(NO_CAMERA)
-    if case == "no build":
-        scene.write_text(NO_BUILD)
+             "no build": tmp_path / "no_build.py",
+             "exits in build": tmp_path / "exits_in_build.py",
+             "exits on load": tmp_path / "exits_on_load.py"}.get(case, os.path.join(SCENES, "mirror_floor.py"))
+    builders = {"no camera": NO_CAMERA, "no build": NO_BUILD, "exits in build": EXITS_IN_BUILD,
+                "exits on load": EXITS_ON_LOAD}
+    if case in builders:
+        scene.write_text(builders[case])
     out = tmp_path / "out"
     result = run_cli("render", scene, "--out", out, *extra, check=False)
     lines = error_lines(result)
