@@ -43,7 +43,8 @@ def _build_scene(path):
     build = namespace.get("build")
     if not callable(build):
         raise SSRError(f"scene builder {path} defines no build(scene) function")
-    bpy.ops.wm.read_factory_settings(use_empty=True)
+    # The factory startup file without the factory preferences, which would disable this add-on.
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
     scene = bpy.context.scene
     try:
         build(scene)

@@ -521,7 +521,7 @@ def test_planar_baseline_matches_the_analytic_mirror_image_off_screen_too(addon)
 # --- the extension package -------------------------------------------------------------------------------------
 
 INSTALL_AND_ENABLE = textwrap.dedent("""
-    import json, sys
+    import importlib, json, sys
     import bpy
     import addon_utils
     module = "bl_ext.user_default.stochastic_ssr"
@@ -530,6 +530,10 @@ INSTALL_AND_ENABLE = textwrap.dedent("""
              "scene_property": hasattr(bpy.types.Scene, "ssr"),
              "operator": "ssr_render_frame" in dir(bpy.ops.render),
              "thickness": bpy.context.scene.ssr.thickness}
+    # A render wrangler's entry point: the installed extension's command line, loading a .py scene.
+    cli = importlib.import_module(module + ".ssr_addon.cli")
+    cli.main(["render", sys.argv[2], "--method", "none", "--resolution", "32x18", "--out", sys.argv[3]])
+    state["enabled_after_cli"] = module in bpy.context.preferences.addons and hasattr(bpy.types.Scene, "ssr")
     addon_utils.disable(module)
     state["disabled_cleanly"] = not hasattr(bpy.types.Scene, "ssr") and not hasattr(bpy.types, "RENDER_PT_ssr")
     print("STATE " + json.dumps(state))
@@ -552,11 +556,13 @@ def test_built_extension_installs_enables_and_disables(tmp_path):
     user_dir = tmp_path / "user"
     script = tmp_path / "install.py"
     script.write_text(INSTALL_AND_ENABLE)
-    result = subprocess.run([sys.executable, str(script), str(package)], cwd=tmp_path, capture_output=True,
+    result = subprocess.run([sys.executable, str(script), str(package), os.path.join(SCENES, "mirror_floor.py"),
+                             str(tmp_path / "cli_out")], cwd=tmp_path, capture_output=True,
                             text=True, env={**os.environ, "BLENDER_USER_RESOURCES": str(user_dir)}, timeout=300)
     lines = [line for line in result.stdout.splitlines() if line.startswith("STATE ")]
     assert lines, result.stdout + result.stderr
     state = json.loads(lines[-1][len("STATE "):])
     assert state == {"enabled": True, "scene_property": True, "operator": True,
-                     "thickness": pytest.approx(0.2), "disabled_cleanly": True}
+                     "thickness": pytest.approx(0.2), "enabled_after_cli": True, "disabled_cleanly": True}
+    assert (tmp_path / "cli_out" / "frame_0001.exr").is_file()
     assert (user_dir / "extensions" / "user_default" / "stochastic_ssr" / "ssr_addon" / "gpu_shaders").is_dir()
