@@ -34,7 +34,6 @@ from .gpu_backend import StageTimer, describe_gpu, empty_texture, ensure_backend
 from .outputs import prepare_output_folder, rewrite_readme_block, write_exr, write_json, written_together
 from .overrides import TemporaryChanges
 from .params import PRESETS, STAGE_TOGGLES, ChainSettings
-from .passes import DEFAULT_SAMPLES
 from .render_job import RenderRequest, parse_resolution, render_frame, run_render
 from .scene_io import load_scene
 from .shaders import get_pass
@@ -49,6 +48,8 @@ DEFAULT_CACHE = os.path.join(os.environ.get("XDG_CACHE_HOME") or os.path.expandu
 # Two Cycles renders of half the samples each, with different seeds: their mean
 # is the reference and their difference measures the reference's own noise.
 REFERENCE_SAMPLES = 2048
+# EEVEE samples of every contender's render, whatever the scene says, so contenders and runs compare.
+EEVEE_SAMPLES = 16
 REFERENCE_SEEDS = (0, 1)
 CACHE_FORMAT = 1
 COPY_PASS_REPEATS = 20
@@ -527,7 +528,7 @@ class BenchOptions:
     out_dir: str
     resolution: tuple = DEFAULT_RESOLUTION
     frames: int = DEFAULT_FRAMES
-    eevee_samples: int = None   # every EEVEE render's samples; None: the add-on's default
+    eevee_samples: int = EEVEE_SAMPLES   # every EEVEE render's samples
     reference_samples: int = REFERENCE_SAMPLES
     cache_dir: str = DEFAULT_CACHE
     contenders: list = None
@@ -582,7 +583,7 @@ def run_bench(options, log=print):
     require_dev_dependencies()
     if options.frames < 1:
         raise SSRError(f"--frames must be at least 1, got {options.frames}")
-    if options.eevee_samples is not None and options.eevee_samples < 1:
+    if options.eevee_samples < 1:
         raise SSRError(f"--samples must be at least 1, got {options.eevee_samples}")
     if options.reference_samples < len(REFERENCE_SEEDS):
         raise SSRError(f"--reference-samples must be at least {len(REFERENCE_SEEDS)}")
@@ -621,7 +622,7 @@ def run_bench(options, log=print):
         "blender": bpy.app.version_string, "gpu": describe_gpu(), "resolution": list(options.resolution),
         "scenes": [scene_label(p) for p in scene_paths], "frames_per_contender": options.frames,
         "contender_patterns": options.contenders,
-        "eevee_samples": options.eevee_samples or DEFAULT_SAMPLES["eevee"],
+        "eevee_samples": options.eevee_samples,
         "timing": "contenders take turns frame by frame; each stage's fastest time over the frames after the "
                   "first (the least disturbed by other processes); a frame's time is the sum of its stages, "
                   "render_frame's StageTimer laps; the engine's render (with the lamp-only render SSR needs in "

@@ -7,6 +7,7 @@ Errors the user can fix print one line and exit with status 2.
 """
 import argparse
 import os
+import signal
 import sys
 
 import bpy
@@ -38,13 +39,14 @@ def build_parser():
                         help="engine that renders the input passes")
     render.add_argument("--resolution", help="WIDTHxHEIGHT (default: the scene's)")
     render.add_argument("--frames", help="frame N or range A-B (default: the current frame)")
-    render.add_argument("--samples", type=int, help="EEVEE or Cycles samples per pixel")
+    render.add_argument("--samples", type=int, help="EEVEE or Cycles samples per pixel (default: the scene's own)")
     render.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override a chain setting, e.g. --set thickness=0.1 or --set preset=high (repeatable)")
     render.add_argument("--on-error", default="stop", choices=("stop", "skip"),
                         help="a frame that fails: stop the run, or report it and go on")
     render.add_argument("--overwrite", action="store_true",
-                        help="render every frame again instead of keeping complete frames already in --out")
+                        help="replace the run already in --out (its frames and report) instead of resuming it; "
+                             "without it, a folder holding a different run is refused")
     compare = commands.add_parser("compare", help="render one frame with SSR, cubemap, planar and no reflections, "
                                                   "side by side with the cost of each")
     compare.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
@@ -61,8 +63,8 @@ def build_parser():
     measure.add_argument("--frames", type=int, default=bench.DEFAULT_FRAMES,
                          help="frames each contender renders, taking turns: time is each stage's fastest "
                               "after the first, accuracy the last frame's")
-    measure.add_argument("--samples", type=int,
-                         help="EEVEE samples per pixel of every EEVEE render (default: the add-on's)")
+    measure.add_argument("--samples", type=int, default=bench.EEVEE_SAMPLES,
+                         help="EEVEE samples per pixel of every EEVEE render, whatever the scene's (default: %(default)s)")
     measure.add_argument("--reference-samples", type=int, default=bench.REFERENCE_SAMPLES,
                          help="Cycles samples of the reference")
     measure.add_argument("--cache", default=bench.DEFAULT_CACHE, help="folder of cached references")
@@ -93,7 +95,7 @@ def run(argv=None):
         resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
         frames=parse_frames(arguments.frames) if arguments.frames else None,
         samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
-        on_error=arguments.on_error, resume=not arguments.overwrite)
+        on_error=arguments.on_error, overwrite=arguments.overwrite)
     scene_path = arguments.scene or bpy.data.filepath
     if not scene_path:
         raise SSRError("no SCENE given and Blender has no .blend file open")
@@ -123,7 +125,16 @@ def _compare(arguments):
         print(line)
 
 
+class _Terminated(BaseException):
+    """SIGTERM (what farm schedulers send), raised like KeyboardInterrupt so every cleanup runs."""
+
+
+def _raise_terminated(signum, frame):
+    raise _Terminated
+
+
 def main(argv=None):
+    previous_handler = signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         run(argv)
     except SSRError as error:
@@ -132,3 +143,8 @@ def main(argv=None):
     except KeyboardInterrupt:
         print("interrupted: frames written so far are complete", file=sys.stderr)
         sys.exit(130)
+    except _Terminated:
+        print("terminated (SIGTERM): frames written so far are complete", file=sys.stderr)
+        sys.exit(128 + signal.SIGTERM)
+    finally:
+        signal.signal(signal.SIGTERM, previous_handler)

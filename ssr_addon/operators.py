@@ -13,14 +13,12 @@ import bpy
 import numpy as np
 
 from .baselines import apply_baseline
-from .chain import ChainState
 from .compositor import (RESULT_IMAGE, SHEET_IMAGE, comparison_sheet, forget_last_result, publish_image,
                          publish_result, setup_compositor)
 from .errors import SSRError
-from .outputs import prepare_output_folder
 from .overrides import TemporaryChanges
 from .params import PRESETS, SETTINGS_SCHEMA, preset
-from .render_job import RenderRequest, frame_numbers, render_frame, write_frame
+from .render_job import RenderRequest, RenderRun, render_frame
 from .scene_io import require_camera
 from .settings import COMPARISON_MODES, chain_settings
 from .shaders import release_passes
@@ -32,6 +30,11 @@ def output_folder(scene):
     if not folder:
         raise SSRError(f"scene '{scene.name}' has no output path: set one in the Output properties")
     return folder
+
+
+def output_prefix(scene):
+    """The file prefix of the scene's output path ("//shots/take_" -> "take_"), as F12 renders name frames."""
+    return os.path.basename(bpy.path.abspath(scene.render.filepath))
 
 
 def render_request(scene, out_dir=""):
@@ -121,16 +124,18 @@ class RENDER_OT_ssr_render_animation(_ReportsErrors, bpy.types.Operator):
     bl_label = "Render SSR Animation"
 
     def _frames(self, scene):
-        """Render and write one frame per step, so a modal operator can step it between events."""
-        request = replace(render_request(scene, output_folder(scene)), frames=(scene.frame_start, scene.frame_end))
-        require_camera(scene)
-        prepare_output_folder(request.out_dir)
-        state = ChainState()
-        for frame in frame_numbers(scene, request.frames):
-            scene.frame_set(frame)
-            state.begin_frame(frame, scene.camera.name if scene.camera else None)
-            images, _ = render_mode(scene, scene.ssr.comparison_mode, request, state, **_baseline_choices(scene))
-            write_frame(request.out_dir, frame, images, scene)
+        """Render and write one frame per step through the command line's frame loop (RenderRun:
+        resume, warm-up, camera cuts, report.json), so a modal operator can step it between events."""
+        mode = scene.ssr.comparison_mode
+        request = replace(render_request(scene, output_folder(scene)), frames=(scene.frame_start, scene.frame_end),
+                          method=MODE_METHODS[mode], mode=mode, file_prefix=output_prefix(scene),
+                          overwrite=scene.render.use_overwrite)
+        choices = _baseline_choices(scene)
+
+        def render_in_mode(scene, request, state):
+            return render_mode(scene, mode, request, state, **choices)
+        run = RenderRun(scene, bpy.data.filepath, request, render=render_in_mode, unsaved_changes=bpy.data.is_dirty)
+        for frame, images in run.frames():
             publish_result(images, scene.ssr.debug_view)
             yield frame
 

@@ -1,6 +1,7 @@
 """Writing frames: every file goes to a temporary name first and is renamed when complete,
 so an interrupted run leaves only whole files behind."""
 import json
+import math
 import os
 from contextlib import contextmanager
 
@@ -80,9 +81,20 @@ def write_display_png(path, rgba, scene):
 
 
 def write_json(path, data):
+    """Strict JSON (readable by any parser): a NaN or infinite number is written as null."""
     with written_together([path]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
-        json.dump(data, stream, indent=2)
+        json.dump(_finite(data), stream, indent=2, allow_nan=False)
         stream.write("\n")
+
+
+def _finite(value):
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(item) for item in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
 
 
 def prepare_output_folder(folder):

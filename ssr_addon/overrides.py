@@ -17,9 +17,17 @@ class TemporaryChanges:
         setattr(owner, attribute, value)
 
     def set_all(self, owner, **values):
-        """Set several attributes of OWNER, in the given order (media type before format...)."""
+        """Set several attributes of OWNER in the given order (media type before format...), and
+        restore them in that same order: Blender coerces one by another, so restoring them in
+        reverse would turn an 8-bit PNG's depth into 16 while the format is still EXR."""
+        old = {attribute: getattr(owner, attribute) for attribute in values}
+
+        def restore_in_order():
+            for attribute, value in old.items():
+                setattr(owner, attribute, value)
+        self._undo.append(restore_in_order)
         for attribute, value in values.items():
-            self.set(owner, attribute, value)
+            setattr(owner, attribute, value)
 
     def on_restore(self, undo):
         """Register a callable that undoes a change made directly (a new node, a new AOV...)."""

@@ -15,11 +15,10 @@ import OpenImageIO as oiio
 from .errors import SSRError
 from .overrides import TemporaryChanges
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
-from .scene_io import camera_matrices, require_camera
+from .scene_io import camera_matrices, require_camera, require_square_pixels
 
 ENGINES = {"eevee": "BLENDER_EEVEE", "cycles": "CYCLES"}
 BACKGROUND_DEPTH = 1e10  # depth of pixels that show the world (past any clip_end)
-DEFAULT_SAMPLES = {"eevee": 16, "cycles": 128}
 # EEVEE's own screen-space ray tracing, the peer a Blender user would pick instead:
 # its defaults, and the highest quality its options allow.
 EEVEE_RAYTRACING = {
@@ -37,13 +36,16 @@ class FramePasses:
     specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
     f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
     motion: np.ndarray           # (H, W, 2) screen offset to the previous frame, pixels, y up (Vector pass)
-    specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces (probe/world), before FG
-    specular_direct: np.ndarray  # (H, W, 3) lamp highlights, kept as they are
+    specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces, before FG: probes/world
+                                   # (EEVEE); world, emissive and other surfaces (Cycles)
+    specular_direct: np.ndarray  # (H, W, 3) lamp highlights (lamps the camera cannot see), kept as they are
     view_matrix: np.ndarray      # (4, 4) world to view
     projection_matrix: np.ndarray  # (4, 4) view to clip
     clip_start: float
     clip_end: float
     engine: str
+    samples: int                 # samples per pixel the engine rendered with
+    material_warnings: tuple = ()  # materials whose roughness/F0 the AOVs could not read, and what was assumed
 
     @property
     def size(self):
@@ -59,26 +61,45 @@ def undo_coverage(value, coverage, fallback):
                                 dtype=np.float32)
 
 
+def render_size(scene, resolution=None):
+    """(width, height) a render will have: RESOLUTION, or the scene's own at its percentage."""
+    if resolution is not None:
+        return tuple(resolution)
+    render = scene.render
+    return (render.resolution_x * render.resolution_percentage // 100,
+            render.resolution_y * render.resolution_percentage // 100)
+
+
+def render_samples(scene, engine, samples=None):
+    """Samples per pixel a render will use: SAMPLES, or the scene's own setting for ENGINE."""
+    if samples is not None:
+        return samples
+    return scene.eevee.taa_render_samples if engine == "eevee" else scene.cycles.samples
+
+
 def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_raytracing=None,
                   split_lamp_specular=True):
     """Render SCENE's current frame with ENGINE and return its FramePasses.
 
+    SAMPLES and RESOLUTION default to the scene's own (render_samples, render_size).
     EEVEE renders with its ray tracing off (probe/world reflections, what SSR
     improves on) unless `eevee_raytracing` names a preset of EEVEE_RAYTRACING.
-    `split_lamp_specular=False` skips the lamp-only render when nothing will
-    replace the indirect specular (then specular_direct is zero).
+    `split_lamp_specular=False` skips the render that splits lamp highlights off
+    (EEVEE: lamps only; Cycles: lamps hidden) when nothing will replace the
+    indirect specular (then specular_direct is zero).
     The scene, its view layer and its materials are exactly as before on return.
     """
     camera = require_camera(scene)
     if engine not in ENGINES:
         raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
-    samples = samples or DEFAULT_SAMPLES[engine]
+    require_square_pixels(scene)
+    samples = render_samples(scene, engine, samples)
     view_layer = next((layer for layer in scene.view_layers if layer.use), None)
     if view_layer is None:
         raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
-        add_material_aovs(scene, view_layer, changes)
+        material_warnings = tuple(add_material_aovs(scene, view_layer, changes))
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
         width, height = scene.render.resolution_x, scene.render.resolution_y
         if engine == "eevee":
@@ -89,8 +110,16 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
                 else np.zeros_like(specular_all)
             specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
         else:
-            specular_direct = _layer(layers, "Glossy Direct")
-            specular_indirect = _layer(layers, "Glossy Indirect")
+            # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
+            # the world and emissive surfaces; Glossy Indirect what other surfaces reflect.
+            # SSR replaces all but the lamps the camera cannot see (never on screen): a
+            # render with those lamps hidden gives the rest of Glossy Direct.
+            glossy_direct = _layer(layers, "Glossy Direct")
+            glossy_indirect = _layer(layers, "Glossy Indirect")
+            lamps = _offscreen_lamps(scene) if split_lamp_specular else []
+            emitter_specular = _emitter_specular(scene, folder, lamps) if lamps else glossy_direct
+            specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
+            specular_indirect = glossy_indirect + emitter_specular
         view, projection = camera_matrices(scene, width, height)
     aov = _layer(layers, ROUGHNESS_AOV)
     passes_shape = aov.shape[:2]
@@ -114,20 +143,15 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         specular_indirect=specular_indirect,
         specular_direct=specular_direct,
         view_matrix=view, projection_matrix=projection,
-        clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine)
+        clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine, samples=samples,
+        material_warnings=material_warnings)
 
 
 def _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing=None):
     render = scene.render
     changes.set(render, "engine", ENGINES[engine])
-    if resolution is not None:
-        changes.set(render, "resolution_x", resolution[0])
-        changes.set(render, "resolution_y", resolution[1])
-        changes.set(render, "resolution_percentage", 100)
-    if render.resolution_percentage != 100:
-        changes.set(render, "resolution_x", render.resolution_x * render.resolution_percentage // 100)
-        changes.set(render, "resolution_y", render.resolution_y * render.resolution_percentage // 100)
-        changes.set(render, "resolution_percentage", 100)
+    width, height = render_size(scene, resolution)
+    changes.set_all(render, resolution_x=width, resolution_y=height, resolution_percentage=100)
     changes.set(render, "use_compositing", False)
     changes.set(render, "use_sequencer", False)
     for layer in scene.view_layers:
@@ -207,4 +231,22 @@ def _lamp_specular(scene, folder):
             if obj.type == "LIGHT_PROBE":
                 lamp_only.set(obj, "hide_render", True)
         layers = _render_to_exr(scene, os.path.join(folder, "lamp_specular.exr"), lamp_only)
+    return _layer(layers, "Glossy Direct")
+
+
+def _offscreen_lamps(scene):
+    """Lamps that render but that the camera never sees: their glossy light stays in the image."""
+    return [obj for obj in scene.objects
+            if obj.type == "LIGHT" and not obj.hide_render and not obj.visible_camera]
+
+
+def _emitter_specular(scene, folder, lamps):
+    """Cycles' Glossy Direct with LAMPS hidden: the reflected world and emissive surfaces
+    (and camera-visible lamps), what SSR can see on screen. Glossy Direct is written at the
+    first bounce, so no further bounce is traced (the pass is the same, sample for sample)."""
+    with TemporaryChanges() as emitters_only:
+        for lamp in lamps:
+            emitters_only.set(lamp, "hide_render", True)
+        emitters_only.set(scene.cycles, "max_bounces", 0)
+        layers = _render_to_exr(scene, os.path.join(folder, "emitter_specular.exr"), emitters_only)
     return _layer(layers, "Glossy Direct")

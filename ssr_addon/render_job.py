@@ -5,10 +5,9 @@ scene and a RenderRequest, never bpy.context.
 """
 import ctypes
 import ctypes.util
-import json
 import os
 import re
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 
 import bpy
 import numpy as np
@@ -19,15 +18,15 @@ from .gpu_backend import StageTimer, describe_gpu, download, ensure_backend
 from .outputs import (prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr,
                       written_together)
 from .params import ChainSettings
-from .passes import ENGINES, render_passes
+from .passes import ENGINES, render_passes, render_samples, render_size
 from .progress import FrameProgress
-from .scene_io import require_camera
+from .run_report import REPORT_NAME, claim_folder, fingerprint, frame_paths, scene_identity
+from .scene_io import require_camera, require_square_pixels
 
 # ssr: this project; none: probe/world reflections only; cycles: the path-traced
 # reference; eevee-rt / eevee-rt-high: EEVEE's own screen-space ray tracing.
 METHODS = ("ssr", "none", "cycles", "eevee-rt", "eevee-rt-high")
 EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}
-OUTPUT_SUFFIXES = (".exr", ".png", ".passes.exr")
 # Frames re-rendered (not written) before the first missing frame of a resumed run, so
 # its temporal history is as warm as an uninterrupted run's (the filter averages ~10).
 # The frame sequence draws a frame's random numbers from its number alone, so the
@@ -45,7 +44,9 @@ class RenderRequest:
     samples: int = None          # EEVEE TAA samples / Cycles samples; engine default if None
     settings: ChainSettings = field(default_factory=ChainSettings)
     on_error: str = "stop"       # a frame that fails: "stop" the run or "skip" to the next frame
-    resume: bool = True          # keep complete frames already in out_dir
+    overwrite: bool = False      # replace the run in out_dir instead of resuming it (run_report)
+    file_prefix: str = "frame_"  # frame N is written as {file_prefix}{N:04d}.exr, .png and .passes.exr
+    mode: str = None             # the operators' comparison mode, when one applies a baseline
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -183,37 +184,16 @@ def pass_channels(images):
     return channels
 
 
-def frame_paths(out_dir, frame):
-    stem = os.path.join(out_dir, f"frame_{frame:04d}")
-    return [stem + suffix for suffix in OUTPUT_SUFFIXES]
-
-
-def write_frame(out_dir, frame, images, scene):
+def write_frame(out_dir, frame, images, scene, prefix="frame_"):
     """Write one frame's three files under temporary names, then rename them together."""
     final = images["final"]
     if not np.isfinite(final).all():
         raise SSRError(f"frame {frame}: the result has NaN or Inf pixels; nothing written")
-    final_exr, png, passes_exr = frame_paths(out_dir, frame)
+    final_exr, png, passes_exr = frame_paths(out_dir, prefix, frame)
     with written_together([passes_exr, png, final_exr]) as (passes_partial, png_partial, final_partial):
         write_exr(passes_partial, pass_channels(images))
         write_display_png(png_partial, final, scene)
         write_rgba_exr(final_partial, final)
-
-
-def _is_complete(out_dir, frame):
-    return all(os.path.isfile(path) for path in frame_paths(out_dir, frame))
-
-
-def _previous_report(path, request):
-    """Per-frame entries of an earlier run with the same request, to keep on resume."""
-    try:
-        with open(path, encoding="utf-8") as stream:
-            report = json.load(stream)
-    except (OSError, ValueError):
-        return {}
-    if report.get("method") != request.method or report.get("settings") != asdict(request.settings):
-        return {}
-    return {entry["frame"]: entry for entry in report.get("frames", ())}
 
 
 def return_large_buffers_to_the_system():
@@ -230,60 +210,97 @@ def return_large_buffers_to_the_system():
         ctypes.CDLL(libc_name).mallopt(m_mmap_threshold, 1 << 20)
 
 
-def run_render(scene, scene_path, request, log=print, progress_stream=None):
-    """Render every requested frame into request.out_dir, in order, carrying temporal history.
+class RenderRun:
+    """One run of REQUEST over SCENE's frames into request.out_dir, carrying temporal history.
 
-    Complete frames already there are kept (resume); the history is re-warmed over
-    the frames just before the first missing one. Returns the report (also
-    written as report.json after every frame).
+    Made before anything renders: it checks the scene and claims the output
+    folder (run_report: resume a matching run, refuse a different one).
+    `frames()` renders and writes the frames one at a time, yielding each
+    (frame, images) once written, so a modal operator can step it; the report
+    (also report.json, rewritten after every frame) is in `report`.
+    RENDER(scene, request, state) renders one frame (default render_frame; an
+    operator's applies a comparison baseline). UNSAVED_CHANGES: the scene file on
+    disk is not what renders, so the run can never be resumed.
     """
-    require_camera(scene)
-    frames = frame_numbers(scene, request.frames)
-    prepare_output_folder(request.out_dir)
-    return_large_buffers_to_the_system()
-    report_path = os.path.join(request.out_dir, "report.json")
-    kept = _previous_report(report_path, request) if request.resume else {}
-    todo = [f for f in frames if not (request.resume and _is_complete(request.out_dir, f))]
-    report = {
-        "scene": scene_path, "method": request.method, "engine": request.engine,
-        "samples": request.samples, "settings": asdict(request.settings),
-        "blender": bpy.app.version_string, "gpu": None,
-        "frames": [kept[f] for f in frames if f in kept and f not in todo], "failed_frames": [],
-    }
-    if not todo:
-        log(f"all {len(frames)} frames are already complete in {request.out_dir}")
-        return report
-    first_missing = todo[0]
-    warmup = [f for f in frames if first_missing - RESUME_WARMUP_FRAMES <= f < first_missing] \
-        if request.method == "ssr" and request.settings.use_temporal else []
-    if len(todo) < len(frames):
-        log(f"resuming at frame {first_missing}: {len(frames) - len(todo)} complete frames kept, "
-            f"history re-warmed over {len(warmup)} frames")
-    progress = None  # started at the first written frame, so warm-up does not skew the ETA
-    # One frame is a still (accumulated until converged); a range is an animation whose
-    # history carries from frame to frame, reset on a jump in the range or a camera cut.
-    state = ChainState.still() if len(frames) == 1 else ChainState()
-    for frame in warmup + todo:
-        scene.frame_set(frame)
-        state.begin_frame(frame, scene.camera.name if scene.camera else None)
-        if frame == first_missing:
-            progress = FrameProgress(len(todo), progress_stream)
-        try:
-            images, timer = render_frame(scene, request, state)
-            if frame in warmup:
+
+    def __init__(self, scene, scene_path, request, log=print, progress_stream=None, render=None,
+                 unsaved_changes=False):
+        require_camera(scene)
+        require_square_pixels(scene)
+        self.scene, self.request, self.log, self.render = scene, request, log, render or render_frame
+        self.progress_stream = progress_stream
+        self.frame_list = frame_numbers(scene, request.frames)
+        prepare_output_folder(request.out_dir)
+        self.report_path = os.path.join(request.out_dir, REPORT_NAME)
+        samples = render_samples(scene, request.engine, request.samples)
+        identity = fingerprint(scene_identity(scene_path, unsaved_changes), request,
+                               render_size(scene, request.resolution), samples)
+        kept = claim_folder(request.out_dir, identity, self.frame_list, request.overwrite)
+        self.todo = [f for f in self.frame_list if f not in kept]
+        self.report = {
+            "fingerprint": identity,
+            "scene": scene_path, "method": request.method, "engine": request.engine, "samples": samples,
+            "blender": bpy.app.version_string, "gpu": None,
+            "frames": [entry for frame, entry in sorted(kept.items()) if frame not in self.todo],
+            "failed_frames": [],
+        }
+
+    def frames(self):
+        request, scene = self.request, self.scene
+        if not self.todo:
+            self.log(f"all {len(self.frame_list)} frames are already complete in {request.out_dir}")
+            return
+        first_missing = self.todo[0]
+        warmup = [f for f in self.frame_list if first_missing - RESUME_WARMUP_FRAMES <= f < first_missing] \
+            if request.method == "ssr" and request.settings.use_temporal else []
+        if len(self.todo) < len(self.frame_list):
+            self.log(f"resuming at frame {first_missing}: {len(self.frame_list) - len(self.todo)} complete frames "
+                     f"kept, history re-warmed over {len(warmup)} frames")
+        progress = None  # started at the first written frame, so warm-up does not skew the ETA
+        # One frame is a still (accumulated until converged); a range is an animation whose
+        # history carries from frame to frame, reset on a jump in the range or a camera cut.
+        state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
+        warned = set()
+        for frame in warmup + self.todo:
+            scene.frame_set(frame)
+            state.begin_frame(frame, scene.camera.name if scene.camera else None)
+            if frame == first_missing:
+                progress = FrameProgress(len(self.todo), self.progress_stream)
+            try:
+                images, timer = self.render(scene, request, state)
+                self._warn_once(images["passes"], warned)
+                if frame in warmup:
+                    continue
+                write_frame(request.out_dir, frame, images, scene, request.file_prefix)
+                timer.lap("write")
+            except SSRError as error:
+                if request.on_error == "stop" or frame in warmup:
+                    raise
+                self.log(f"frame {frame} failed: {error}; going on (--on-error skip)")
+                self.report["failed_frames"].append({"frame": frame, "error": str(error)})
+                state.reset_history()
+                progress.frame_done(frame, "failed")
+                write_json(self.report_path, self.report)
                 continue
-            write_frame(request.out_dir, frame, images, scene)
-            timer.lap("write")
-        except SSRError as error:
-            if request.on_error == "stop" or frame in warmup:
-                raise
-            log(f"frame {frame} failed: {error}; going on (--on-error skip)")
-            report["failed_frames"].append({"frame": frame, "error": str(error)})
-            state.reset_history()
-            progress.frame_done(frame, "failed")
-            write_json(report_path, report)
-            continue
-        if report["gpu"] is None and request.method == "ssr":
+            self._record(frame, images, timer, progress)
+            yield frame, images
+        _summarise(self.report, self.log)
+        write_json(self.report_path, self.report)
+        failed = self.report["failed_frames"]
+        if failed:
+            raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
+
+    def _warn_once(self, passes, warned):
+        """The material warnings of the passes, each logged once per run and kept in the report."""
+        for warning in passes.material_warnings:
+            if warning not in warned:
+                warned.add(warning)
+                self.log(f"warning: {warning}")
+                self.report.setdefault("warnings", []).append(warning)
+
+    def _record(self, frame, images, timer, progress):
+        report = self.report
+        if report["gpu"] is None and self.request.method == "ssr":
             report["gpu"] = describe_gpu()
         height, width = images["final"].shape[:2]
         report["resolution"] = [width, height]
@@ -293,14 +310,16 @@ def run_render(scene, scene_path, request, log=print, progress_stream=None):
                                  "render_ms": stages["render"], "addon_ms": round(own_ms, 3),
                                  **images["stats"]})
         report["frames"].sort(key=lambda entry: entry["frame"])
-        write_json(report_path, report)
+        write_json(self.report_path, report)
         progress.frame_done(frame, f"render {stages['render'] / 1000:.1f} s + add-on {own_ms / 1000:.2f} s")
-    _summarise(report, log)
-    write_json(report_path, report)
-    if report["failed_frames"]:
-        raise SSRError(f"{len(report['failed_frames'])} frame(s) failed: "
-                       f"{', '.join(str(entry['frame']) for entry in report['failed_frames'])}")
-    return report
+
+
+def run_render(scene, scene_path, request, log=print, progress_stream=None):
+    """Render every requested frame into request.out_dir (RenderRun); returns the report."""
+    run = RenderRun(scene, scene_path, request, log, progress_stream)
+    for _ in run.frames():
+        pass
+    return run.report
 
 
 def _summarise(report, log):

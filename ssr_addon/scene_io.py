@@ -68,6 +68,16 @@ def require_camera(scene):
     return scene.camera
 
 
+def require_square_pixels(scene):
+    """Blender 5.0 fails to write the multilayer EXR of a render with passes when pixels are not square."""
+    aspect_x, aspect_y = scene.render.pixel_aspect_x, scene.render.pixel_aspect_y
+    if aspect_x != aspect_y:
+        raise SSRError(f"scene '{scene.name}' has non-square pixels (pixel aspect {aspect_x:g}:{aspect_y:g}), "
+                       "which Blender 5.0 cannot write as render passes: set Output > Format > Aspect to 1:1 "
+                       "and stretch the finished frames instead")
+    return scene
+
+
 def camera_matrices(scene, width, height):
     """World-to-view and view-to-clip matrices of the scene camera as float32 arrays."""
     camera = require_camera(scene)

@@ -63,10 +63,13 @@ def set_world(scene, color, strength=1.0):
     return world
 
 
-def set_resolution(scene, width, height):
+def set_render(scene, width, height):
+    """Resolution and samples: the add-on renders with the scene's own unless told otherwise."""
     scene.render.resolution_x = width
     scene.render.resolution_y = height
     scene.render.resolution_percentage = 100
+    scene.eevee.taa_render_samples = 16
+    scene.cycles.samples = 128
 
 
 def animate_location(scene, obj, locations, first_frame=1):
@@ -84,7 +87,7 @@ def animate_location(scene, obj, locations, first_frame=1):
 
 def stability_stage(scene, floor_roughness=0.05):
     """What the stability cases share: 160x90, a blue-grey world and a metal mirror floor."""
-    set_resolution(scene, 160, 90)
+    set_render(scene, 160, 90)
     set_world(scene, (0.25, 0.3, 0.4))
     return add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0,
                     principled("Mirror", base_color=(0.9, 0.9, 0.9), roughness=floor_roughness, metallic=1.0))

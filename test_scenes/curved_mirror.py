@@ -8,7 +8,7 @@ its reflection of the sphere and the wall must blur, not stay sharp. The sun
 shines from behind the camera, so its highlights fall mostly off the
 reflective areas.
 """
-from _common import add_camera, add_mesh, add_sun, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, add_sun, principled, set_render, set_world
 
 SPHERE_CENTER = (0.0, 1.5, 1.2)
 SPHERE_RADIUS = 1.2
@@ -27,7 +27,7 @@ def checker_material(name, color1, color2, scale):
 
 
 def build(scene):
-    set_resolution(scene, 320, 180)
+    set_render(scene, 320, 180)
     set_world(scene, (0.25, 0.3, 0.4), strength=0.6)
     add_mesh(scene, "plane", "Floor", (0, 0, 0), 12.0,
              principled("MetalFloor", base_color=(0.85, 0.85, 0.85), roughness=0.12, metallic=1.0))

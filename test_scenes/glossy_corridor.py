@@ -3,11 +3,11 @@
 Reflections run a long way down the corridor and towards the vanishing point,
 where a linear march needs many steps; the stripes give sharp, bright targets.
 """
-from _common import add_camera, add_mesh, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, principled, set_render, set_world
 
 
 def build(scene):
-    set_resolution(scene, 320, 180)
+    set_render(scene, 320, 180)
     set_world(scene, (0.02, 0.02, 0.03))
     floor = principled("PolishedFloor", base_color=(0.6, 0.6, 0.65), roughness=0.08, metallic=0.9)
     wall = principled("Wall", base_color=(0.5, 0.45, 0.4), roughness=0.7)

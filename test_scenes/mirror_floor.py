@@ -4,14 +4,14 @@ The marker's position is known (MARKER_CENTER) so tests can project its mirror
 image analytically. The sun shines from behind the camera, so its highlight on
 the mirror is off screen and the floor shows only reflections.
 """
-from _common import add_camera, add_mesh, add_sun, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, add_sun, principled, set_render, set_world
 
 MARKER_CENTER = (0.0, 3.0, 1.2)
 MARKER_RADIUS = 0.35
 
 
 def build(scene):
-    set_resolution(scene, 320, 180)
+    set_render(scene, 320, 180)
     set_world(scene, (0.05, 0.06, 0.08))
     mirror = principled("Mirror", base_color=(0.95, 0.95, 0.95), roughness=0.0, metallic=1.0)
     add_mesh(scene, "plane", "Floor", (0, 0, 0), 12.0, mirror)

@@ -6,7 +6,7 @@ with it: where the ball and its reflection were, the temporal history holds
 stale reflections that the filter must drop, while the reflections of the
 static backdrop and boxes must stay steady.
 """
-from _common import add_camera, add_mesh, add_sun, animate_location, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, add_sun, animate_location, principled, set_render, set_world
 
 BALL_RADIUS = 0.5
 STEP = 0.35
@@ -14,7 +14,7 @@ FIRST_X = -1.25
 
 
 def build(scene):
-    set_resolution(scene, 320, 180)
+    set_render(scene, 320, 180)
     set_world(scene, (0.2, 0.25, 0.35), strength=0.6)
     add_mesh(scene, "plane", "Floor", (0, 0, 0), 12.0,
              principled("DarkGloss", base_color=(0.15, 0.15, 0.15), roughness=0.05, metallic=1.0))

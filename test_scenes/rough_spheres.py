@@ -4,13 +4,13 @@ The floor is a mirror, so each sphere's reflection is sharp while the spheres'
 own reflections blur with roughness; past max_roughness SSR must leave the
 probe/world reflection alone.
 """
-from _common import add_camera, add_mesh, add_sun, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, add_sun, principled, set_render, set_world
 
 ROUGHNESS = (0.05, 0.25, 0.45, 0.7)
 
 
 def build(scene):
-    set_resolution(scene, 320, 180)
+    set_render(scene, 320, 180)
     set_world(scene, (0.3, 0.35, 0.45), strength=0.5)
     add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0,
              principled("Floor", base_color=(0.8, 0.8, 0.8), roughness=0.02, metallic=1.0))

@@ -4,13 +4,13 @@ Most reflection rays leave through the sky, where the depth buffer holds
 nothing: SSR must miss there and keep the world reflection, and must not
 stretch the block's reflection into the sky's.
 """
-from _common import add_camera, add_mesh, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, principled, set_render, set_world
 
 MOTION = None
 
 
 def build(scene):
-    set_resolution(scene, 160, 90)
+    set_render(scene, 160, 90)
     set_world(scene, (0.4, 0.6, 1.0), strength=1.5)
     add_mesh(scene, "plane", "Floor", (0, 20, 0), 40.0,
              principled("Mirror", base_color=(0.9, 0.9, 0.9), roughness=0.05, metallic=1.0))

@@ -4,13 +4,13 @@ The wall's reflection of the sphere shows the sphere's back, which the camera
 never sees, and its rays run back towards the camera: SSR must fade them out
 (camera-facing fade) rather than reflect the sphere's front.
 """
-from _common import add_camera, add_mesh, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, principled, set_render, set_world
 
 MOTION = None
 
 
 def build(scene):
-    set_resolution(scene, 160, 90)
+    set_render(scene, 160, 90)
     set_world(scene, (0.25, 0.3, 0.4))
     add_mesh(scene, "plane", "Floor", (0, 0, 0), 10.0, principled("Floor", base_color=(0.5, 0.5, 0.5), roughness=0.9))
     add_mesh(scene, "cube", "MirrorWall", (0.0, 3.0, 1.5), (3.0, 0.05, 1.5),

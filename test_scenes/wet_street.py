@@ -9,7 +9,7 @@ emissive windows and lamps as bright targets, under a dim blue night sky.
 """
 import bpy
 
-from _common import add_camera, add_mesh, principled, set_resolution, set_world
+from _common import add_camera, add_mesh, principled, set_render, set_world
 
 
 def wet_asphalt():
@@ -32,7 +32,7 @@ def wet_asphalt():
 
 
 def build(scene):
-    set_resolution(scene, 320, 180)
+    set_render(scene, 320, 180)
     set_world(scene, (0.05, 0.08, 0.18), strength=0.5)
     add_mesh(scene, "plane", "Street", (0, 12, 0), (5.0, 16.0, 1.0), wet_asphalt())
     buildings = ((0.45, 0.3, 0.25), (0.3, 0.35, 0.45), (0.5, 0.45, 0.35), (0.25, 0.35, 0.3))

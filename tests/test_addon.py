@@ -28,7 +28,7 @@ from ssr_addon.ui import overlay, panels
 
 BLENDER_EXT = os.path.join(bpy.utils.system_resource("SCRIPTS"), "addons_core", "bl_pkg", "cli", "blender_ext.py")
 sys.path.insert(0, SCENES)
-from _common import add_camera, add_mesh, principled, set_resolution, set_world  # noqa: E402
+from _common import add_camera, add_mesh, principled, set_render, set_world  # noqa: E402
 
 SMALL = (64, 36)
 
@@ -47,7 +47,7 @@ def _empty_scene():
 
 def _mirror_floor(width, height):
     scene = load_scene(os.path.join(SCENES, "mirror_floor.py"))
-    set_resolution(scene, width, height)
+    set_render(scene, width, height)
     return scene
 
 
@@ -59,7 +59,7 @@ LANTERN_CENTRE, LANTERN_HALF = (2.6, 2.4, 1.0), 0.6
 
 def _sculpture_scene():
     scene = _empty_scene()
-    set_resolution(scene, *SMALL)
+    set_render(scene, *SMALL)
     set_world(scene, (0.02, 0.02, 0.02))
     (x0, y0, z0), (x1, y1, z1) = BLOCK_LOW, BLOCK_HIGH
     b = BASE_HALF
@@ -369,10 +369,15 @@ def test_render_animation_writes_every_frame_in_background(addon, tmp_path):
     scene = _mirror_floor(*SMALL)
     scene.ssr.comparison_mode = "NONE"  # the frame loop is under test, not the chain
     scene.frame_start, scene.frame_end, scene.frame_current = 3, 4, 7
-    scene.render.filepath = str(tmp_path / "anim" / "frame_")
+    scene.render.filepath = str(tmp_path / "anim" / "shot_")
     assert bpy.ops.render.ssr_render_animation() == {"FINISHED"}
     written = sorted(os.listdir(tmp_path / "anim"))
-    assert written == [f"frame_{n:04d}{suffix}" for n in (3, 4) for suffix in (".exr", ".passes.exr", ".png")]
+    # The output path's prefix names the frames, as F12 does; the command line's frame loop writes the report.
+    assert written == ["report.json"] + [f"shot_{n:04d}{suffix}" for n in (3, 4)
+                                         for suffix in (".exr", ".passes.exr", ".png")]
+    with open(tmp_path / "anim" / "report.json", encoding="utf-8") as stream:
+        report = json.load(stream)
+    assert [entry["frame"] for entry in report["frames"]] == [3, 4] and report["fingerprint"]["mode"] == "NONE"
     assert scene.frame_current == 7
 
 

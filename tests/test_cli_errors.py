@@ -17,6 +17,14 @@ def build(scene):
     sys.exit(0)
 """
 EXITS_ON_LOAD = "import sys\nsys.exit(3)\n"
+NON_SQUARE_PIXELS = f"""
+import sys
+sys.path.insert(0, {SCENES!r})
+from mirror_floor import build as build_mirror_floor
+def build(scene):
+    build_mirror_floor(scene)
+    scene.render.pixel_aspect_x = 1.1
+"""
 
 
 def error_lines(result):
@@ -29,6 +37,7 @@ def error_lines(result):
     ("no build", [], "defines no build(scene)"),
     ("exits in build", [], "called sys.exit(0)"),
     ("exits on load", [], "called sys.exit(3)"),
+    ("non-square pixels", [], "non-square pixels (pixel aspect 1.1:1)"),
     ("bad frames", ["--frames", "ten"], "--frames"),
     ("reversed frames", ["--frames", "9-3"], "reversed"),
     ("bad resolution", ["--resolution", "320by180"], "--resolution"),
@@ -42,9 +51,10 @@ def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
              "no camera": tmp_path / "no_camera.py",
              "no build": tmp_path / "no_build.py",
              "exits in build": tmp_path / "exits_in_build.py",
-             "exits on load": tmp_path / "exits_on_load.py"}.get(case, os.path.join(SCENES, "mirror_floor.py"))
+             "exits on load": tmp_path / "exits_on_load.py",
+             "non-square pixels": tmp_path / "non_square.py"}.get(case, os.path.join(SCENES, "mirror_floor.py"))
     builders = {"no camera": NO_CAMERA, "no build": NO_BUILD, "exits in build": EXITS_IN_BUILD,
-                "exits on load": EXITS_ON_LOAD}
+                "exits on load": EXITS_ON_LOAD, "non-square pixels": NON_SQUARE_PIXELS}
     if case in builders:
         scene.write_text(builders[case])
     out = tmp_path / "out"

@@ -38,8 +38,30 @@ def _texture(tree, socket):
     tree.links.new(texture.outputs["Color"], socket)
 
 
+def _rna_values(struct, depth=2):
+    """Every readable property of an RNA struct as plain data, nested structs to DEPTH (IDs by name)."""
+    values = {}
+    for prop in struct.bl_rna.properties:
+        if prop.identifier in ("rna_type", "linear_colorspace_settings") or prop.type == "COLLECTION":
+            continue  # an unset linear colour space (factory files) is initialised by any EXR format setting
+        try:
+            value = getattr(struct, prop.identifier)
+        except (AttributeError, RuntimeError):
+            continue
+        if prop.type == "POINTER":
+            if isinstance(value, bpy.types.ID) or value is None:
+                values[prop.identifier] = getattr(value, "name_full", None)
+            elif depth > 0:
+                values[prop.identifier] = _rna_values(value, depth - 1)
+        elif hasattr(value, "__len__") and not isinstance(value, str):
+            values[prop.identifier] = tuple(value)
+        else:
+            values[prop.identifier] = value
+    return values
+
+
 def _snapshot(scene):
-    """Everything the pass render touches, as plain data."""
+    """Everything the pass render touches (every render, engine and view-layer setting), as plain data."""
     materials = {}
     for material in bpy.data.materials:
         tree = material.node_tree
@@ -47,11 +69,11 @@ def _snapshot(scene):
             sorted((n.name, n.bl_idname) for n in tree.nodes),
             sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
                    for l in tree.links))
-    layer = scene.view_layers[0]
-    render = scene.render
-    return (materials, [a.name for a in layer.aovs], layer.use_pass_z, layer.use_pass_normal,
-            layer.use_pass_glossy_direct, render.engine, render.filepath, render.resolution_x,
-            render.image_settings.file_format, scene.eevee.taa_render_samples, scene.world)
+    layers = {layer.name: (_rna_values(layer, 1), [(a.name, a.type) for a in layer.aovs])
+              for layer in scene.view_layers}
+    objects = {obj.name: _rna_values(obj, 0) for obj in scene.objects}
+    return (materials, layers, objects, _rna_values(scene.render), _rna_values(scene.eevee),
+            _rna_values(scene.cycles), scene.world, sorted(bpy.data.worlds.keys()), sorted(bpy.data.images.keys()))
 
 
 @pytest.fixture(scope="module")
@@ -89,6 +111,22 @@ def test_roughness_aov_follows_every_kind_of_input(roughness_scene):
 def test_scene_is_exactly_as_before(roughness_scene):
     before = _snapshot(roughness_scene)
     render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+    assert _snapshot(roughness_scene) == before
+
+
+def test_every_setting_is_restored_after_an_exception_halfway(roughness_scene, monkeypatch):
+    """A failure after the render (every setting changed, AOVs wired) still leaves the scene as it was,
+    the output format included (a PNG at 8 bits stayed at 16 bits through the EXR's 32)."""
+    from ssr_addon import passes
+    roughness_scene.render.image_settings.file_format = "PNG"
+    roughness_scene.render.image_settings.color_depth = "8"
+    before = _snapshot(roughness_scene)
+
+    def failing_read(path):
+        raise RuntimeError("a bug halfway through the frame")
+    monkeypatch.setattr(passes, "read_multilayer_exr", failing_read)
+    with pytest.raises(RuntimeError, match="halfway"):
+        render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
     assert _snapshot(roughness_scene) == before
 
 
