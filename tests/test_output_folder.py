@@ -130,3 +130,24 @@ def test_report_is_strict_json_even_with_non_finite_numbers(tmp_path):
     from ssr_addon.outputs import write_json
     write_json(tmp_path / "report.json", {"mean": float("nan"), "frames": [{"ms": float("inf")}]})
     assert strict_json(tmp_path / "report.json") == {"mean": None, "frames": [{"ms": None}]}
+
+
+def test_an_unreadable_material_is_one_warning_per_run(dolly, tmp_path):
+    """Two frames, two objects with the same Toon material: one line in the log and in the report."""
+    import bpy
+    from ssr_addon.render_job import RenderRequest, run_render
+    from ssr_addon.scene_io import load_scene
+    scene = load_scene(str(dolly))
+    toon = bpy.data.materials.new("toon")
+    shader = toon.node_tree.nodes.new("ShaderNodeBsdfToon")
+    toon.node_tree.nodes.remove(toon.node_tree.nodes["Principled BSDF"])
+    toon.node_tree.links.new(shader.outputs[0], toon.node_tree.nodes["Material Output"].inputs["Surface"])
+    for x in (-0.5, 0.5):
+        bpy.ops.mesh.primitive_cube_add(size=0.3, location=(x, 0.0, 0.3))
+        bpy.context.active_object.data.materials.append(toon)
+    lines = []
+    report = run_render(scene, str(dolly), RenderRequest(out_dir=str(tmp_path), method="none", frames=(1, 2)),
+                        log=lines.append)
+    warnings = [line for line in lines if line.startswith("warning:")]
+    assert len(warnings) == 1 and "'toon'" in warnings[0] and "Toon BSDF" in warnings[0], lines
+    assert report["warnings"] == [warnings[0][len("warning: "):]]
