@@ -14,7 +14,15 @@
  * multiplies by the pre-integrated FG = F0 * A + B, so with confidence c:
  *   final = combined + c * FG * L - c * specular_color * indirect_specular.
  * Diffuse light, emission, the world seen directly and lamp highlights pass
- * through untouched; where c is 0 the probe/world reflection stays. */
+ * through untouched; where c is 0 the probe/world reflection stays.
+ *
+ * indirect_specular is everything SSR can stand in for, lamps excepted (passes.py):
+ *   EEVEE:  Specular Light less a lamp-only render's (probes and the world);
+ *   Cycles: Glossy Indirect (other surfaces) plus the part of Glossy Direct that is
+ *           not lamps the camera cannot see: reflected emissive surfaces and the world,
+ *           which Cycles counts as direct light (one bounce to an emitter). SSR's rays
+ *           fetch the emissive surfaces' Combined, so leaving them in would count the
+ *           reflection of an on-screen emitter twice. */
 
 vec3 fg_term(vec3 f0, float n_dot_v, float roughness)
 {
