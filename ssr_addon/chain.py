@@ -14,8 +14,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frame_sequence import FrameSequence
-from .gpu_backend import TexturePool, uniform_buffer, upload
+from .frame_sequence import MAX_ITERATIONS, FrameSequence
+from .gpu_backend import TexturePool, download, uniform_buffer, upload
 from .gpu_params import MAX_PYRAMID_LEVELS
 from .shaders import DFG_SIZE, get_pass
 
@@ -156,7 +156,7 @@ def _lap(timer, stage, texture):
 
 
 def chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous_world_to_clip,
-                 hiz_rects, color_rects):
+                 hiz_rects, color_rects, still=False):
     """The uniform block of one iteration, every field by name (gpu_params.PARAMS_FIELDS)."""
     view = np.asarray(inputs.view_matrix, np.float64)
     projection = np.asarray(inputs.projection_matrix, np.float64)
@@ -181,7 +181,8 @@ def chain_params(inputs, settings, size, trace_size, iteration, history_mode, pr
         "use_firefly_guard": settings.use_firefly_guard, "denoise_radius": settings.denoise_radius,
         "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,
         "history_frames": history_frames,
-        "static_history_frames": max(history_frames, settings.accumulate_frames),
+        # A still's iterations share one camera and scene: a plain running mean over all of them.
+        "static_history_frames": MAX_ITERATIONS if still else max(history_frames, settings.accumulate_frames),
         "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
     })
 
@@ -216,74 +217,106 @@ def run_chain(inputs, settings, state, timer=None):
     sequence = state.sequence
     iterations = sequence.iteration_count(settings)
     for iteration_in_frame in range(iterations):
-        iteration = sequence.next_iteration(keeps_history=settings.use_temporal)
-        has_history = iteration.read_slot is not None
-        history_mode = 0 if not has_history else (2 if iteration_in_frame > 0 else 1)
-        previous = state.previous_world_to_clip if has_history else world_to_clip
-        params = chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous,
-                              hiz_rects, color_rects)
-        blocks = (("params", params),)
-        if state.dfg_tx is None:
-            state.dfg_tx = pool.get("dfg", (DFG_SIZE, DFG_SIZE))
-            get_pass("dfg_table").draw([state.dfg_tx], uniform_blocks=blocks)
-        ray_hit_tx = pool.get("ray_hit", trace_size)
-        ray_dir_tx = pool.get("ray_dir", trace_size)
-        ray_stats_tx = pool.get("ray_stats", trace_size)
-        get_pass("trace").draw(
-            [ray_hit_tx, ray_dir_tx, ray_stats_tx],
-            samplers=(("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
-                      ("roughness_tx", inputs.roughness_tx), ("hiz_tx", hiz_tx)),
-            uniform_blocks=blocks)
-        _lap(timer, "trace", ray_hit_tx)
-
-        resolved_tx = pool.get("reflection", size)
-        reflection_hit_tx = pool.get("reflection_hit", size)
-        get_pass("resolve").draw(
-            [resolved_tx, reflection_hit_tx],
-            samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
-                      ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
-                      ("color_tx", color_tx)),
-            uniform_blocks=blocks)
-        _lap(timer, "resolve", resolved_tx)
-
-        spatial_tx = resolved_tx
-        if settings.use_spatial_filter:
-            spatial_tx = pool.get("reflection_spatial", size)
-            get_pass("denoise_spatial").draw(
-                [spatial_tx],
-                samplers=(("reflection_tx", resolved_tx), ("reflection_hit_tx", reflection_hit_tx),
-                          ("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
-                          ("roughness_tx", inputs.roughness_tx)),
-                uniform_blocks=blocks)
-            _lap(timer, "spatial", spatial_tx)
-
-        reflection_tx, history_count_tx = spatial_tx, None
-        if settings.use_temporal:
-            filtered_tx = pool.get(f"history{iteration.write_slot}", size)
-            count_tx = pool.get(f"history_count{iteration.write_slot}", size)
-            history_tx, history_count_in_tx = (
-                (pool.get(f"history{iteration.read_slot}", size), pool.get(f"history_count{iteration.read_slot}", size))
-                if has_history else (spatial_tx, reflection_hit_tx))  # not read without history
-            get_pass("temporal").draw(
-                [filtered_tx, count_tx],
-                samplers=(("reflection_tx", spatial_tx), ("reflection_hit_tx", reflection_hit_tx),
-                          ("depth_tx", inputs.depth_tx), ("motion_tx", inputs.motion_tx),
-                          ("history_tx", history_tx), ("history_count_tx", history_count_in_tx)),
-                uniform_blocks=blocks)
-            _lap(timer, "temporal", filtered_tx)
-            reflection_tx, history_count_tx = filtered_tx, count_tx
-        state.previous_world_to_clip = world_to_clip
+        outputs, blocks = _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
+                                         color_tx, color_rects, world_to_clip, first=iteration_in_frame == 0)
+    # A still that is not converged yet doubles its iterations until the running mean moves
+    # less than noise_threshold: the change from n to 2n iterations is about 2n's own error.
+    while added := sequence.doubling(settings):
+        before = download(outputs["reflection_tx"])
+        for _ in range(added):
+            outputs, blocks = _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
+                                             color_tx, color_rects, world_to_clip, first=False)
+        iterations += added
+        if relative_change(before, download(outputs["reflection_tx"])) <= settings.noise_threshold:
+            break
 
     final_tx = pool.get("final", size)
     get_pass("composite").draw(
         [final_tx], samplers=(("combined_tx", inputs.combined_tx),
                               ("specular_color_tx", inputs.specular_color_tx),
                               ("specular_indirect_tx", inputs.specular_indirect_tx),
-                              ("reflection_tx", reflection_tx), ("f0_tx", inputs.f0_tx),
+                              ("reflection_tx", outputs["reflection_tx"]), ("f0_tx", inputs.f0_tx),
                               ("dfg_tx", state.dfg_tx), ("depth_tx", inputs.depth_tx),
                               ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx)),
         uniform_blocks=blocks)
     _lap(timer, "composite", final_tx)
-    return ChainOutputs(ray_hit_tx=ray_hit_tx, ray_dir_tx=ray_dir_tx, ray_stats_tx=ray_stats_tx,
-                        resolved_tx=resolved_tx, spatial_tx=spatial_tx, reflection_tx=reflection_tx,
-                        history_count_tx=history_count_tx, final_tx=final_tx, iterations=iterations)
+    return ChainOutputs(**outputs, final_tx=final_tx, iterations=iterations)
+
+
+def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects, color_tx, color_rects,
+                   world_to_clip, first):
+    """One trace iteration: trace, resolve, spatial and temporal filters; returns their textures by
+    ChainOutputs field and its uniform blocks. FIRST: the frame's first iteration (its history is
+    the previous frame's)."""
+    pool = state.pool
+    sequence = state.sequence
+    iteration = sequence.next_iteration(keeps_history=settings.use_temporal)
+    has_history = iteration.read_slot is not None
+    history_mode = 0 if not has_history else (1 if first else 2)
+    previous = state.previous_world_to_clip if has_history else world_to_clip
+    params = chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous,
+                          hiz_rects, color_rects, still=sequence.still)
+    blocks = (("params", params),)
+    if state.dfg_tx is None:
+        state.dfg_tx = pool.get("dfg", (DFG_SIZE, DFG_SIZE))
+        get_pass("dfg_table").draw([state.dfg_tx], uniform_blocks=blocks)
+    ray_hit_tx = pool.get("ray_hit", trace_size)
+    ray_dir_tx = pool.get("ray_dir", trace_size)
+    ray_stats_tx = pool.get("ray_stats", trace_size)
+    get_pass("trace").draw(
+        [ray_hit_tx, ray_dir_tx, ray_stats_tx],
+        samplers=(("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
+                  ("roughness_tx", inputs.roughness_tx), ("hiz_tx", hiz_tx)),
+        uniform_blocks=blocks)
+    _lap(timer, "trace", ray_hit_tx)
+
+    resolved_tx = pool.get("reflection", size)
+    reflection_hit_tx = pool.get("reflection_hit", size)
+    get_pass("resolve").draw(
+        [resolved_tx, reflection_hit_tx],
+        samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
+                  ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
+                  ("color_tx", color_tx)),
+        uniform_blocks=blocks)
+    _lap(timer, "resolve", resolved_tx)
+
+    spatial_tx = resolved_tx
+    if settings.use_spatial_filter:
+        spatial_tx = pool.get("reflection_spatial", size)
+        get_pass("denoise_spatial").draw(
+            [spatial_tx],
+            samplers=(("reflection_tx", resolved_tx), ("reflection_hit_tx", reflection_hit_tx),
+                      ("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
+                      ("roughness_tx", inputs.roughness_tx)),
+            uniform_blocks=blocks)
+        _lap(timer, "spatial", spatial_tx)
+
+    reflection_tx, history_count_tx = spatial_tx, None
+    if settings.use_temporal:
+        filtered_tx = pool.get(f"history{iteration.write_slot}", size)
+        count_tx = pool.get(f"history_count{iteration.write_slot}", size)
+        history_tx, history_count_in_tx = (
+            (pool.get(f"history{iteration.read_slot}", size), pool.get(f"history_count{iteration.read_slot}", size))
+            if has_history else (spatial_tx, reflection_hit_tx))  # not read without history
+        get_pass("temporal").draw(
+            [filtered_tx, count_tx],
+            samplers=(("reflection_tx", spatial_tx), ("reflection_hit_tx", reflection_hit_tx),
+                      ("depth_tx", inputs.depth_tx), ("motion_tx", inputs.motion_tx),
+                      ("history_tx", history_tx), ("history_count_tx", history_count_in_tx)),
+            uniform_blocks=blocks)
+        _lap(timer, "temporal", filtered_tx)
+        reflection_tx, history_count_tx = filtered_tx, count_tx
+    state.previous_world_to_clip = world_to_clip
+    return {"ray_hit_tx": ray_hit_tx, "ray_dir_tx": ray_dir_tx, "ray_stats_tx": ray_stats_tx,
+            "resolved_tx": resolved_tx, "spatial_tx": spatial_tx, "reflection_tx": reflection_tx,
+            "history_count_tx": history_count_tx}, blocks
+
+
+def relative_change(before, after):
+    """Mean absolute change of premultiplied reflected radiance over pixels with any reflection,
+    as a share of its mean level there."""
+    reflecting = (before[..., 3] > 0) | (after[..., 3] > 0)
+    level = np.abs(after[..., :3][reflecting]).mean() if reflecting.any() else 0.0
+    if not level > 0:
+        return 0.0
+    return float(np.abs(after[..., :3] - before[..., :3])[reflecting].mean() / level)

@@ -75,6 +75,13 @@ class FrameSequence:
             return min(settings.accumulate_frames, MAX_ITERATIONS)
         return min(ANIMATION_FIRST_ITERATIONS, settings.accumulate_frames)
 
+    def doubling(self, settings):
+        """Iterations a still adds to double the ones it has run (its noise_threshold is not met yet),
+        or 0 where it may not: an animation frame, no temporal filter, the threshold off, the cap."""
+        if not (self.still and settings.use_temporal and settings.noise_threshold > 0):
+            return 0
+        return min(self._iteration, MAX_ITERATIONS - self._iteration)
+
     def next_iteration(self, keeps_history=True):
         """The next iteration of this frame; KEEPS_HISTORY False (temporal filter off) hands out no slots."""
         if self.frame is None:

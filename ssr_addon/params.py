@@ -69,6 +69,10 @@ class ChainSettings:
     accumulate_frames: int = _setting(
         16, "Stills: jittered iterations accumulated; animations: most frames a pixel that holds still averages",
         1, 256, group="temporal")
+    noise_threshold: float = _setting(
+        0.0, "Stills: after accumulate_frames, keep doubling the iterations (up to 256) until the reflection "
+             "changes by less than this share of its level from one doubling to the next (0: never)",
+        0.0, 1.0, group="temporal")
     # Fading
     max_roughness: float = _setting(
         0.5, "Surfaces rougher than this keep their probe/world reflection", 0.0, 1.0, group="fading")

@@ -89,3 +89,34 @@ def test_reuse_and_temporal_filter_beat_the_same_rays_without_them(spheres):
     print(f"RMSE: no reuse/no temporal {plain:.4f}, reuse {reuse:.4f}, reuse + temporal {both:.4f}")
     assert reuse < plain
     assert both < reuse
+
+
+def still_reflection(spheres, settings):
+    """(premultiplied reflection RGB, iterations run) of a still."""
+    from ssr_addon.chain import ChainInputs, ChainState, run_chain
+    from ssr_addon.gpu_backend import download
+    state = ChainState.still()
+    state.begin_frame(0)
+    outputs = run_chain(ChainInputs.from_passes(spheres[0], settings), settings, state)
+    return download(outputs.reflection_tx)[..., :3], outputs.iterations
+
+
+def test_a_still_accumulates_until_converged(spheres):
+    """noise_threshold's promise: the still keeps doubling its iterations until doubling moves the
+    reflection by less than the threshold, so it ends within about that of a 256-iteration still,
+    where a fixed 4 iterations are not."""
+    glossy = spheres[2]
+    converged, _ = still_reflection(spheres, ChainSettings(accumulate_frames=256, **ESTIMATOR_ONLY))
+    level = converged[glossy].mean()
+
+    def distance(reflection):
+        return float(np.abs(reflection[glossy] - converged[glossy]).mean() / level)
+    threshold = 0.02
+    fixed, fixed_iterations = still_reflection(spheres, ChainSettings(accumulate_frames=4, **ESTIMATOR_ONLY))
+    adaptive, iterations = still_reflection(
+        spheres, ChainSettings(accumulate_frames=4, noise_threshold=threshold, **ESTIMATOR_ONLY))
+    print(f"distance to 256 iterations: fixed {fixed_iterations} {distance(fixed):.4f}, "
+          f"adaptive {iterations} {distance(adaptive):.4f}")
+    assert fixed_iterations == 4 and distance(fixed) > threshold, "the scene must need more than 4 iterations"
+    assert 4 < iterations < 256
+    assert distance(adaptive) <= 1.5 * threshold
