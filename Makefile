@@ -16,8 +16,8 @@ $(STAMP): pyproject.toml
 
 # Renders the bundled demo scene with SSR off and on, side by side in $(OUT).
 demo: $(STAMP)
-	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method none --out $(OUT)/none
-	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method ssr --out $(OUT)/ssr
+	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method none --out $(OUT)/none --overwrite
+	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method ssr --out $(OUT)/ssr --overwrite
 
 test: $(STAMP)
 	$(PY) -m pytest tests
