@@ -92,13 +92,13 @@ def claim_folder(out_dir, new_fingerprint, frames, overwrite):
             raise SSRError(f"{out_dir} already holds frames ({', '.join(map(str, strangers[:5]))}) but no "
                            f"{REPORT_NAME} says how they were made: {OVERWRITE_HINT}")
         return {}
-    differences = list(_differences(old.get("fingerprint", {}), new_fingerprint))
     if overwrite:
         for entry in old.get("frames", []):
             for path in frame_paths(out_dir, old.get("fingerprint", {}).get("file_prefix", prefix), entry["frame"]):
                 if os.path.exists(path):
                     os.remove(path)
         return {}
+    differences = list(_differences(old.get("fingerprint", {}), new_fingerprint))
     if differences:
         raise SSRError(f"{out_dir} holds another run (differs in: {'; '.join(differences)}): {OVERWRITE_HINT}")
     return {entry["frame"]: entry for entry in old.get("frames", []) if is_complete(out_dir, prefix, entry["frame"])}
