@@ -231,6 +231,7 @@ class RenderRun:
         self.progress_stream = progress_stream
         self.frame_list = frame_numbers(scene, request.frames)
         prepare_output_folder(request.out_dir)
+        return_large_buffers_to_the_system()
         self.report_path = os.path.join(request.out_dir, REPORT_NAME)
         samples = render_samples(scene, request.engine, request.samples)
         identity = fingerprint(scene_identity(scene_path, unsaved_changes), request,
