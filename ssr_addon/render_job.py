@@ -242,7 +242,7 @@ class RenderRun:
             "fingerprint": identity,
             "scene": scene_path, "method": request.method, "engine": request.engine, "samples": samples,
             "blender": bpy.app.version_string, "gpu": None,
-            "frames": [entry for frame, entry in sorted(kept.items()) if frame not in self.todo],
+            "frames": [entry for _, entry in sorted(kept.items())],
             "failed_frames": [],
         }
 
