@@ -65,3 +65,33 @@ def render_scene(tmp_path_factory):
             cache[key] = RenderedScene(str(folder))
         return cache[key]
     return render
+
+
+# A cheap animation for the frame loop: one EEVEE render per frame.
+DOLLY = f"""
+import sys
+import bpy
+sys.path.insert(0, {SCENES!r})
+from mirror_floor import build as build_mirror_floor
+
+
+def build(scene):
+    build_mirror_floor(scene)
+    bpy.data.objects.remove(bpy.data.objects["Sun"])  # no lamp: one EEVEE render per frame
+    scene.eevee.taa_render_samples = 4
+    scene.render.resolution_x, scene.render.resolution_y = 64, 36
+    scene.frame_start, scene.frame_end = 1, 5
+    camera = scene.camera
+    camera.location.x = -0.4
+    camera.keyframe_insert("location", frame=1)
+    camera.location.x = 0.4
+    camera.keyframe_insert("location", frame=4)
+"""
+
+
+@pytest.fixture(scope="session")
+def dolly(tmp_path_factory):
+    """A five-frame camera dolly over the mirror floor at 64x36, 4 EEVEE samples, no lamp."""
+    path = tmp_path_factory.mktemp("dolly") / "dolly.py"
+    path.write_text(DOLLY)
+    return path

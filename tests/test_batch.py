@@ -5,34 +5,7 @@ import os
 import numpy as np
 import pytest
 
-from conftest import SCENES, read_exr, rgb, run_cli
-
-DOLLY = f"""
-import sys
-import bpy
-sys.path.insert(0, {SCENES!r})
-from mirror_floor import build as build_mirror_floor
-
-
-def build(scene):
-    build_mirror_floor(scene)
-    bpy.data.objects.remove(bpy.data.objects["Sun"])  # no lamp: one EEVEE render per frame
-    scene.eevee.taa_render_samples = 4
-    scene.render.resolution_x, scene.render.resolution_y = 64, 36
-    scene.frame_start, scene.frame_end = 1, 5
-    camera = scene.camera
-    camera.location.x = -0.4
-    camera.keyframe_insert("location", frame=1)
-    camera.location.x = 0.4
-    camera.keyframe_insert("location", frame=4)
-"""
-
-
-@pytest.fixture(scope="module")
-def dolly(tmp_path_factory):
-    path = tmp_path_factory.mktemp("dolly") / "dolly.py"
-    path.write_text(DOLLY)
-    return path
+from conftest import read_exr, rgb, run_cli
 
 
 def final(folder, frame):

@@ -10,17 +10,9 @@ import time
 import pytest
 
 from conftest import REPO, SCENES, run_cli
-from test_batch import DOLLY
 from test_cli_errors import error_lines
 
 SMALL = ("--resolution", "64x36")
-
-
-@pytest.fixture(scope="module")
-def dolly(tmp_path_factory):
-    path = tmp_path_factory.mktemp("dolly") / "dolly.py"
-    path.write_text(DOLLY)
-    return path
 
 
 def strict_json(path):
