@@ -60,11 +60,13 @@ class ChainInputs:
 
 def ray_budget(roughness, depth, clip_end, settings):
     """(threshold, tie fraction) that gives the smoothest `expensive_ray_budget` share of
-    traced pixels expensive rays, even where large areas share one roughness."""
+    traced pixels expensive rays, and every pixel at most `sharp_roughness`, even where
+    large areas share one roughness."""
     traced = np.sort(roughness[(depth < clip_end) & (roughness <= settings.max_roughness)])
     if traced.size == 0 or settings.expensive_ray_budget >= 1.0:
         return 1.0, 1.0
-    allowed = int(settings.expensive_ray_budget * traced.size)
+    sharp = int(np.searchsorted(traced, settings.sharp_roughness, side="right"))
+    allowed = max(int(settings.expensive_ray_budget * traced.size), sharp)
     if allowed == 0:
         return -1.0, 0.0
     threshold = float(traced[allowed - 1])

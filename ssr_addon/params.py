@@ -26,8 +26,11 @@ class ChainSettings:
     # Tracing
     use_hiz: bool = _setting(True, "Trace smooth surfaces hierarchically through a min-depth pyramid (expensive rays)")
     expensive_ray_budget: float = _setting(
-        0.3, "Largest fraction of traced rays that may be expensive Hi-Z rays; the smoothest pixels get them",
+        0.3, "Fraction of traced rays that get expensive Hi-Z rays, smoothest pixels first (more where sharp_roughness asks)",
         0.0, 1.0)
+    sharp_roughness: float = _setting(
+        0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
+             "coarse steps show as stair-steps in a sharp reflection", 0.0, 1.0)
     hiz_max_iterations: int = _setting(96, "Hi-Z tracing: most cell visits per ray", 8, 1024)
     use_importance_sampling: bool = _setting(
         True, "Sample ray directions from the GGX lobe (Halton sequence); off: mirror directions only")

@@ -14,6 +14,8 @@ from .gpu_params import glsl_struct
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "gpu_shaders")
 DFG_SIZE = 32  # the FG table's resolution in n.v and roughness
 DFG_SAMPLES = 4096  # points per texel: within 0.015 of a 32768-point table even at grazing angles
+# Share of the GGX lobe's visible normals, the outermost, that rays never sample (trace.glsl).
+LOBE_TAIL = 0.02
 
 
 @dataclass(frozen=True)
@@ -39,7 +41,8 @@ PASSES = {
     "pyramid_pack": PassDeclaration("pyramid_pack.glsl", ("level_tx",), ("atlas_img",), libraries=(),
                                     push_constants=(("IVEC2", "level_offset"),), uses_params=False),
     "trace": PassDeclaration("trace.glsl", ("depth_tx", "normal_tx", "roughness_tx", "hiz_tx"),
-                             ("ray_hit_img", "ray_dir_img", "ray_stats_img"), libraries=_TRACE_LIBRARIES),
+                             ("ray_hit_img", "ray_dir_img", "ray_stats_img"), libraries=_TRACE_LIBRARIES,
+                             defines=(("LOBE_TAIL", repr(LOBE_TAIL)),)),
     "resolve": PassDeclaration("resolve.glsl", ("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx",
                                                 "roughness_tx", "color_tx"),
                                ("reflection_img", "reflection_hit_img"),

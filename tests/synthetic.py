@@ -39,22 +39,33 @@ def raycast(width, height, projection, boxes, floor_y=None, far=100.0):
         hit = (rays[..., 1] < 0) & (t > 0) & (t < depth)
         depth[hit] = t[hit]
         normal[hit] = (0, 1, 0)
-    for low, high in boxes:
-        low, high = np.asarray(low, float), np.asarray(high, float)
+    t, box, face_normal = intersect_boxes(np.zeros_like(rays), rays, boxes, depth)
+    hit = box >= 0
+    depth[hit] = t[hit]  # rays have z = -1, so t is the view depth
+    normal[hit] = face_normal[hit]
+    return depth.astype(np.float32), normal.astype(np.float32)
+
+
+def intersect_boxes(origins, directions, boxes, t_max):
+    """Nearest hit of rays ORIGINS + t DIRECTIONS (t > 0, below T_MAX) on axis-aligned BOXES:
+    (t, index of the box or -1, outward face normal)."""
+    t_best = np.array(t_max, np.float64, copy=True)
+    index = np.full(t_best.shape, -1)
+    normal = np.zeros(t_best.shape + (3,))
+    for number, (low, high) in enumerate(boxes):
         with np.errstate(divide="ignore", invalid="ignore"):
-            t1 = low / rays
-            t2 = high / rays
+            t1 = (np.asarray(low, float) - origins) / directions
+            t2 = (np.asarray(high, float) - origins) / directions
         t_near = np.nanmax(np.minimum(t1, t2), axis=-1)
         t_far = np.nanmin(np.maximum(t1, t2), axis=-1)
-        hit = (t_near <= t_far) & (t_near > 0) & (t_near < depth)
+        hit = (t_near <= t_far) & (t_near > 0) & (t_near < t_best)
         axis = np.argmax(np.minimum(t1, t2), axis=-1)
+        t_best[hit], index[hit] = t_near[hit], number
         for a in range(3):
             face = hit & (axis == a)
-            sign = -np.sign(rays[..., a])
             normal[face] = 0
-            normal[face, a] = sign[face]
-        depth[hit] = t_near[hit]  # rays have z = -1, so t is the view depth
-    return depth.astype(np.float32), normal.astype(np.float32)
+            normal[face, a] = -np.sign(directions[..., a])[face]
+    return t_best, index, normal
 
 
 def corridor(width=80, height=48, pole_width=0.1):

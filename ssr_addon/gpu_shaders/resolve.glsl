@@ -31,13 +31,13 @@ const ivec2 NEIGHBOURS[9] = ivec2[9](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec
                                      ivec2(0, -1), ivec2(-1, 1), ivec2(1, -1), ivec2(-1, -1));
 
 /* Colour of a ray's hit as a cone: the pyramid level whose texel matches the
- * patch the sample stands for, 1 / (N pdf) steradians seen at the hit distance. */
-vec3 hit_radiance(vec2 hit_uv, float hit_distance, float pdf, float ray_count)
+ * patch the sample stands for, SOLID_ANGLE steradians seen at the hit distance. */
+vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
 {
   float level = 0.0;
   if (params.use_cone_filter != 0 && params.use_importance_sampling != 0) {
     float hit_depth = texelFetch(depth_tx, texel_at(hit_uv * params.viewport_size), 0).r;
-    float patch_area = hit_distance * hit_distance / (ray_count * pdf);
+    float patch_area = hit_distance * hit_distance * solid_angle;
     float texel_area = pow(pixel_footprint(hit_depth), 2.0);
     level = clamp(0.5 * log2(patch_area / texel_area), 0.0, float(params.color_levels) - 1.0);
   }
@@ -73,6 +73,11 @@ void main()
   ivec2 trace_size = ivec2(params.trace_size);
   int ray_count = params.resolve_samples;
 
+  /* A ray stands for 1 / (N pdf) steradians of the lobe (filtered importance
+   * sampling), but never for more than the whole lobe, 1 / (its peak pdf): a ray
+   * from a smooth lobe's tail must not read a blur of everything around its hit. */
+  float lobe_solid_angle = 1.0 / visible_normal_pdf(max(dot(normal, to_eye), 1e-4), 1.0, alpha);
+
   vec3 radiance_sum = vec3(0.0);
   float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;
   vec2 hit_uv_sum = vec2(0.0);
@@ -95,7 +100,8 @@ void main()
     weight_sum += weight;
     if (hit.w > 0.0 && weight > 0.0) {
       float hit_weight = weight * hit.w;
-      vec3 radiance = hit_radiance(hit.xy, hit_distance, hit.z, float(ray_count));
+      vec3 radiance = hit_radiance(hit.xy, hit_distance,
+                                    min(1.0 / (float(ray_count) * hit.z), lobe_solid_angle));
       radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(radiance) : radiance);
       hit_weight_sum += hit_weight;
       distance_sum += hit_weight * hit_distance;

@@ -32,11 +32,18 @@ bool is_expensive(float roughness, ivec2 pixel)
 
 /* This pixel's point of the frame sequence. A pixel originates a ray every
  * trace_scale^2 iterations, so it steps through the sequence at that rate: its
- * own rays take the sequence's points in order, strata filled evenly. */
+ * own rays take the sequence's points in order, strata filled evenly.
+ * The lobe's outermost LOBE_TAIL of visible normals (shaders.py) is never
+ * drawn, as EEVEE's ray generation cuts 2%: those rays leave far off the lobe,
+ * so on a smooth surface one of them is a speck of whatever it hit; the resolve
+ * weighs the rest by the BRDF, so the reflection is the lobe without its faint
+ * tail. */
+
 vec2 lobe_sample(ivec2 pixel)
 {
   uint rays_per_pixel = uint(params.trace_scale * params.trace_scale);
-  return sample_point(pixel, params.sample_index / rays_per_pixel);
+  vec2 u = sample_point(pixel, params.sample_index / rays_per_pixel);
+  return vec2(u.x * (1.0 - LOBE_TAIL), u.y);
 }
 
 void main()
