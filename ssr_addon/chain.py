@@ -314,11 +314,26 @@ def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz
             "history_count_tx": history_count_tx}, blocks
 
 
-def relative_change(before, after):
-    """Mean absolute change of premultiplied reflected radiance over pixels with any reflection,
-    as a share of its mean level there."""
+CONVERGENCE_TILE = 16  # pixels: each tile this size counts alike in the change
+
+
+def relative_change(before, after, tile=CONVERGENCE_TILE):
+    """Change of premultiplied reflected radiance from BEFORE to AFTER as a share of its level,
+    per TILE x TILE tile that mostly reflects, averaged over those tiles: a small glossy object
+    counts as much as a large floor that converged long ago (a mean over pixels would call the
+    still converged while the object is still noisy)."""
     reflecting = (before[..., 3] > 0) | (after[..., 3] > 0)
-    level = np.abs(after[..., :3][reflecting]).mean() if reflecting.any() else 0.0
-    if not level > 0:
+    change = np.where(reflecting, np.abs(after[..., :3] - before[..., :3]).sum(-1), 0.0)
+    level = np.where(reflecting, np.abs(after[..., :3]).sum(-1), 0.0)
+    height, width = reflecting.shape
+    rows, columns = -(-height // tile), -(-width // tile)
+
+    def tile_sums(values):  # edge tiles are partial: padded with nothing
+        values = np.pad(values, ((0, rows * tile - height), (0, columns * tile - width)))
+        return values.reshape(rows, tile, columns, tile).sum((1, 3))
+    share = tile_sums(reflecting.astype(np.float64)) / tile_sums(np.ones(reflecting.shape))
+    level_sum, change_sum = tile_sums(level), tile_sums(change)
+    counted = (share >= 0.25) & (level_sum > 0)
+    if not counted.any():
         return 0.0
-    return float(np.abs(after[..., :3] - before[..., :3])[reflecting].mean() / level)
+    return float((change_sum[counted] / level_sum[counted]).mean())

@@ -73,7 +73,7 @@ class ChainSettings:
         16, "Stills: jittered iterations accumulated; animations: most frames a pixel that holds still averages",
         1, 256, group="temporal")
     noise_threshold: float = _setting(
-        0.0, "Stills: after accumulate_frames, keep doubling the iterations (up to 256) until the reflection "
+        0.02, "Stills: after accumulate_frames, keep doubling the iterations (up to 256) until the reflection "
              "changes by less than this share of its level from one doubling to the next (0: never)",
         0.0, 1.0, group="temporal")
     # Fading
@@ -135,10 +135,12 @@ STAGE_TOGGLES = ("use_hiz", "use_importance_sampling", "half_resolution", "use_c
 
 PRESETS = {
     "draft": {"half_resolution": True, "resolve_samples": 4, "expensive_ray_budget": 0.1,
-              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_frames": 4},
+              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_frames": 4,
+              "noise_threshold": 0.0},
     "balanced": {},
     "high": {"half_resolution": False, "resolve_samples": 9, "expensive_ray_budget": 1.0,
-             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_frames": 64},
+             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_frames": 64,
+             "noise_threshold": 0.01},
 }
 
 
