@@ -33,6 +33,7 @@ from .errors import SSRError
 from .gpu_backend import StageTimer, describe_gpu, empty_texture, ensure_backend
 from .outputs import prepare_output_folder, rewrite_readme_block, write_exr, write_json, written_together
 from .overrides import TemporaryChanges
+from .passes import lamp_world_for_run
 from .params import PRESETS, STAGE_TOGGLES, ChainSettings
 from .render_job import RenderRequest, parse_resolution, render_frame, run_render
 from .scene_io import load_scene
@@ -562,15 +563,17 @@ def run_contenders(scene, contenders, options):
     """
     states = {contender.name: ChainState() for contender in contenders}
     finals, laps = {}, {contender.name: [] for contender in contenders}
-    for frame in range(scene.frame_current, scene.frame_current + options.frames):
-        for contender in contenders:
-            state = states[contender.name]
-            state.begin_frame(frame)
-            request = RenderRequest(out_dir=options.out_dir, method=contender.method, resolution=options.resolution,
-                                    samples=options.eevee_samples, settings=contender.settings)
-            images, timer = render_frame(scene, request, state)
-            finals[contender.name] = images["final"][..., :3]
-            laps[contender.name].append(timer.milliseconds)
+    with lamp_world_for_run():  # as a batch render keeps it
+        for frame in range(scene.frame_current, scene.frame_current + options.frames):
+            for contender in contenders:
+                state = states[contender.name]
+                state.begin_frame(frame)
+                request = RenderRequest(out_dir=options.out_dir, method=contender.method,
+                                        resolution=options.resolution, samples=options.eevee_samples,
+                                        settings=contender.settings)
+                images, timer = render_frame(scene, request, state)
+                finals[contender.name] = images["final"][..., :3]
+                laps[contender.name].append(timer.milliseconds)
     results = {}
     for name, frames in laps.items():
         timed = frames[1:] or frames

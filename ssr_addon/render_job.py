@@ -18,7 +18,7 @@ from .gpu_backend import StageTimer, describe_gpu, download, ensure_backend
 from .outputs import (prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr,
                       written_together)
 from .params import ChainSettings
-from .passes import ENGINES, render_passes, render_samples, render_size
+from .passes import ENGINES, lamp_world_for_run, render_passes, render_samples, render_size
 from .progress import FrameProgress
 from .run_report import REPORT_NAME, claim_folder, fingerprint, frame_paths, scene_identity
 from .scene_io import require_camera, require_square_pixels
@@ -247,7 +247,7 @@ class RenderRun:
         }
 
     def frames(self):
-        request, scene = self.request, self.scene
+        request = self.request
         if not self.todo:
             self.log(f"all {len(self.frame_list)} frames are already complete in {request.out_dir}")
             return
@@ -257,11 +257,21 @@ class RenderRun:
         if len(self.todo) < len(self.frame_list):
             self.log(f"resuming at frame {first_missing}: {len(self.frame_list) - len(self.todo)} complete frames "
                      f"kept, history re-warmed over {len(warmup)} frames")
-        progress = None  # started at the first written frame, so warm-up does not skew the ETA
         # One frame is a still (accumulated until converged); a range is an animation whose
         # history carries from frame to frame, reset on a jump in the range or a camera cut.
         state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
         warned = set()
+        with lamp_world_for_run():
+            yield from self._render_frames(warmup, first_missing, state, warned)
+        _summarise(self.report, self.log)
+        write_json(self.report_path, self.report)
+        failed = self.report["failed_frames"]
+        if failed:
+            raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
+
+    def _render_frames(self, warmup, first_missing, state, warned):
+        request, scene = self.request, self.scene
+        progress = None  # started at the first written frame, so warm-up does not skew the ETA
         for frame in warmup + self.todo:
             scene.frame_set(frame)
             state.begin_frame(frame, scene.camera.name if scene.camera else None)
@@ -285,11 +295,6 @@ class RenderRun:
                 continue
             self._record(frame, images, timer, progress)
             yield frame, images
-        _summarise(self.report, self.log)
-        write_json(self.report_path, self.report)
-        failed = self.report["failed_frames"]
-        if failed:
-            raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
 
     def _warn_once(self, passes, warned):
         """The material warnings of the passes, each logged once per run and kept in the report."""

@@ -115,7 +115,7 @@ def test_a_still_accumulates_until_converged(spheres):
     threshold = 0.02
     fixed, fixed_iterations = still_reflection(spheres, ChainSettings(accumulate_frames=4, **ESTIMATOR_ONLY))
     adaptive, iterations = still_reflection(
-        spheres, ChainSettings(accumulate_frames=4, noise_threshold=threshold, **ESTIMATOR_ONLY))
+        spheres, ChainSettings(accumulate_frames=4, **{**ESTIMATOR_ONLY, "noise_threshold": threshold}))
     print(f"distance to 256 iterations: fixed {fixed_iterations} {distance(fixed):.4f}, "
           f"adaptive {iterations} {distance(adaptive):.4f}")
     assert fixed_iterations == 4 and distance(fixed) > threshold, "the scene must need more than 4 iterations"

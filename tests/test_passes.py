@@ -3,7 +3,7 @@ import bpy
 import numpy as np
 import pytest
 
-from ssr_addon.passes import render_passes
+from ssr_addon.passes import lamp_world_for_run, render_passes
 
 
 def _plane_with_roughness(name, x, wire_roughness):
@@ -151,3 +151,24 @@ def test_f0_is_the_surfaces_own_at_antialiased_edges(roughness_scene):
     edges = covered & beside_sky
     assert edges.sum() > 20, "the planes' silhouettes are antialiased"
     np.testing.assert_allclose(passes.f0[covered], 0.04, atol=4e-3)
+
+
+def test_a_run_keeps_one_black_world_and_removes_it(roughness_scene):
+    """The lamp-only render of every frame of a run uses the same black world (a new one each
+    frame made EEVEE rebuild its world lighting), with the same lamp light as a lone render's;
+    the run leaves no world behind."""
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.location = (0, 0.5, 2)
+    roughness_scene.collection.objects.link(lamp)
+    worlds = set(bpy.data.worlds)
+    alone = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+    assert set(bpy.data.worlds) == worlds
+    with lamp_world_for_run():
+        first = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+        made = set(bpy.data.worlds) - worlds
+        second = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+        assert len(made) == 1 and set(bpy.data.worlds) - worlds == made
+    assert set(bpy.data.worlds) == worlds
+    assert alone.specular_direct.max() > 0, "the lamp must light the planes"
+    np.testing.assert_allclose(first.specular_direct, alone.specular_direct, atol=1e-5)
+    np.testing.assert_allclose(second.specular_direct, alone.specular_direct, atol=1e-5)
