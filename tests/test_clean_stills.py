@@ -77,3 +77,20 @@ def test_mirror_still_shows_the_analytic_mirror_image(gpu_backend):
     assert wrong.sum() <= 0.002 * judged.sum(), (
         f"{wrong.sum()} of {judged.sum()} pixels off the mirror image by more than {TOLERANCE} "
         f"(worst {error[judged].max():.3f}; specks or stair-steps), rows {sorted(set(np.nonzero(wrong)[0]))[:10]}")
+
+
+def test_sharp_surfaces_always_get_expensive_rays(gpu_backend):
+    """The budget's smoothest-first share is not enough where a mirror covers most of the
+    frame: there a coin sent most mirror pixels to the cheap linear march, whose coarse steps
+    showed as stair-steps. Every traced pixel at most sharp_roughness gets a Hi-Z ray."""
+    projection, depth, normal, _, floor, _, surface_roughness = mirror_scene(0.05)
+    surface_roughness = np.where(floor, 0.05, 0.3).astype(np.float32)
+    settings = preset("balanced").with_overrides(["expensive_ray_budget=0.1", "accumulate_frames=1",
+                                                  "noise_threshold=0", "half_resolution=false"])
+    assert floor.mean() > 0.2, "the floor must be more than the budget"
+    arrays, _ = run_synthetic_chain(depth, normal, surface_roughness, projection, settings,
+                                    ray_budget=ray_budget(surface_roughness, depth, CLIP_END, settings))
+    ray_class = arrays["ray_stats"][..., 0]
+    traced = ray_class > 0
+    assert (ray_class[traced & floor] == 2).all()
+    assert (ray_class[traced & ~floor] == 1).all(), "the budget is spent on the sharp floor"
