@@ -14,7 +14,8 @@ from .gpu_params import glsl_struct
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "gpu_shaders")
 DFG_SIZE = 32  # the FG table's resolution in n.v and roughness
 DFG_SAMPLES = 4096  # points per texel: within 0.015 of a 32768-point table even at grazing angles
-# Share of the GGX lobe's visible normals, the outermost, that rays never sample (trace.glsl).
+# Share of the GGX lobe's visible normals, the outermost, that rays never sample (trace.glsl);
+# the resolve bounds each ray's cone by the lobe that is left.
 LOBE_TAIL = 0.02
 
 
@@ -46,7 +47,8 @@ PASSES = {
     "resolve": PassDeclaration("resolve.glsl", ("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx",
                                                 "roughness_tx", "color_tx"),
                                ("reflection_img", "reflection_hit_img"),
-                               libraries=("common_lib.glsl", "ggx_lib.glsl")),
+                               libraries=("common_lib.glsl", "ggx_lib.glsl"),
+                               defines=(("LOBE_TAIL", repr(LOBE_TAIL)),)),
     "denoise_spatial": PassDeclaration("denoise_spatial.glsl", ("reflection_tx", "reflection_hit_tx", "depth_tx",
                                                                 "normal_tx", "roughness_tx"), ("filtered_img",),
                                        libraries=("common_lib.glsl", "ggx_lib.glsl")),

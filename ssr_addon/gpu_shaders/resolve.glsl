@@ -75,10 +75,11 @@ void main()
 
   /* A ray stands for 1 / (N pdf) steradians of the lobe (filtered importance
    * sampling), but never for more than the whole sampled lobe: rays reach
-   * sqrt((1 - LOBE_TAIL) / LOBE_TAIL) = 7 alphas from its peak (trace.glsl),
-   * about 7^2 over the peak pdf in solid angle. Without the bound, a ray from a
-   * smooth lobe's tail reads a blur of everything around its hit: a speck. */
-  float lobe_solid_angle = 49.0 / visible_normal_pdf(max(dot(normal, to_eye), 1e-4), 1.0, alpha);
+   * sqrt((1 - LOBE_TAIL) / LOBE_TAIL) alphas from its peak (7 at 2 %, trace.glsl),
+   * about that squared over the peak pdf in solid angle. Without the bound, a ray
+   * from a smooth lobe's tail reads a blur of everything around its hit: a speck. */
+  float lobe_solid_angle = (1.0 - LOBE_TAIL) / LOBE_TAIL /
+                           visible_normal_pdf(max(dot(normal, to_eye), 1e-4), 1.0, alpha);
 
   vec3 radiance_sum = vec3(0.0);
   float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;

@@ -38,7 +38,6 @@ bool is_expensive(float roughness, ivec2 pixel)
  * so on a smooth surface one of them is a speck of whatever it hit; the resolve
  * weighs the rest by the BRDF, so the reflection is the lobe without its faint
  * tail. */
-
 vec2 lobe_sample(ivec2 pixel)
 {
   uint rays_per_pixel = uint(params.trace_scale * params.trace_scale);
