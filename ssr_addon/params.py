@@ -26,7 +26,8 @@ class ChainSettings:
     # Tracing
     use_hiz: bool = _setting(True, "Trace smooth surfaces hierarchically through a min-depth pyramid (expensive rays)")
     expensive_ray_budget: float = _setting(
-        0.3, "Fraction of traced rays that get expensive Hi-Z rays, smoothest pixels first (more where sharp_roughness asks)",
+        0.3, "Fraction of traced rays that get expensive Hi-Z rays, smoothest pixels first "
+             "(more where sharp_roughness asks)",
         0.0, 1.0)
     sharp_roughness: float = _setting(
         0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
