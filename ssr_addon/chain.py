@@ -217,19 +217,23 @@ def run_chain(inputs, settings, state, timer=None):
 
     world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
     sequence = state.sequence
+
+    def iterate(first=False):
+        return _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
+                              color_tx, color_rects, world_to_clip, first)
     iterations = sequence.iteration_count(settings)
     for iteration_in_frame in range(iterations):
-        outputs, blocks = _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
-                                         color_tx, color_rects, world_to_clip, first=iteration_in_frame == 0)
+        outputs, blocks = iterate(first=iteration_in_frame == 0)
     # A still that is not converged yet doubles its iterations until the running mean moves
     # less than noise_threshold: the change from n to 2n iterations is about 2n's own error.
+    reflection = None
     while added := sequence.doubling(settings):
-        before = download(outputs["reflection_tx"])
+        before = download(outputs["reflection_tx"]) if reflection is None else reflection
         for _ in range(added):
-            outputs, blocks = _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
-                                             color_tx, color_rects, world_to_clip, first=False)
+            outputs, blocks = iterate()
         iterations += added
-        if relative_change(before, download(outputs["reflection_tx"])) <= settings.noise_threshold:
+        reflection = download(outputs["reflection_tx"])
+        if relative_change(before, reflection) <= settings.noise_threshold:
             break
 
     final_tx = pool.get("final", size)
