@@ -260,17 +260,17 @@ class RenderRun:
         # One frame is a still (accumulated until converged); a range is an animation whose
         # history carries from frame to frame, reset on a jump in the range or a camera cut.
         state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
-        warned = set()
         with lamp_world_for_run():
-            yield from self._render_frames(warmup, first_missing, state, warned)
+            yield from self._render_frames(warmup, first_missing, state)
         _summarise(self.report, self.log)
         write_json(self.report_path, self.report)
         failed = self.report["failed_frames"]
         if failed:
             raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
 
-    def _render_frames(self, warmup, first_missing, state, warned):
+    def _render_frames(self, warmup, first_missing, state):
         request, scene = self.request, self.scene
+        warned = set()
         progress = None  # started at the first written frame, so warm-up does not skew the ETA
         for frame in warmup + self.todo:
             scene.frame_set(frame)
