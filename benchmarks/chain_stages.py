@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/chain_stages.py [--frames N] [--preset NAME ...]
 
-Each preset runs N animation frames (one iteration each, temporal history on);
+Each preset runs N frames of a still shot (after the first, each settles in an iteration or two);
 the table gives the median per stage. The copy pass is measured in the same run.
 """
 import argparse

@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .frame_sequence import MAX_ITERATIONS, FrameSequence
+from .frame_sequence import FrameSequence
 from .gpu_backend import TexturePool, download, uniform_buffer, upload
 from .gpu_params import MAX_PYRAMID_LEVELS
 from .shaders import DFG_SIZE, get_pass
@@ -82,6 +82,8 @@ class ChainState:
     pool: TexturePool = field(default_factory=TexturePool)
     sequence: FrameSequence = field(default_factory=FrameSequence)
     previous_world_to_clip: np.ndarray = None
+    previous_radiance_tx: object = None   # the last frame's lit scene: what its reflections showed
+    last_reflection: np.ndarray = None    # the last frame's reflection as downloaded (noise_threshold on)
     dfg_tx: object = None                 # the FG table, computed once
 
     @classmethod
@@ -93,11 +95,13 @@ class ChainState:
         """Start FRAME (seen through CAMERA); the history carries over unless the sequence breaks."""
         if not self.sequence.start_frame(frame, camera):
             self.previous_world_to_clip = None
+            self.previous_radiance_tx = None
 
     def reset_history(self):
         """Forget the past (a failed frame): the next frame starts afresh."""
         self.sequence.forget()
         self.previous_world_to_clip = None
+        self.previous_radiance_tx = None
 
 
 @dataclass
@@ -158,7 +162,7 @@ def _lap(timer, stage, texture):
 
 
 def chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous_world_to_clip,
-                 hiz_rects, color_rects, still=False):
+                 hiz_rects, color_rects):
     """The uniform block of one iteration, every field by name (gpu_params.PARAMS_FIELDS)."""
     view = np.asarray(inputs.view_matrix, np.float64)
     projection = np.asarray(inputs.projection_matrix, np.float64)
@@ -183,8 +187,6 @@ def chain_params(inputs, settings, size, trace_size, iteration, history_mode, pr
         "use_firefly_guard": settings.use_firefly_guard, "denoise_radius": settings.denoise_radius,
         "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,
         "history_frames": history_frames,
-        # A still's iterations share one camera and scene: a plain running mean over all of them.
-        "static_history_frames": MAX_ITERATIONS if still else max(history_frames, settings.accumulate_frames),
         "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
     })
 
@@ -202,6 +204,7 @@ def run_chain(inputs, settings, state, timer=None):
     still, or an animation's first frame after a cut) the frame runs the
     sequence's first iterations (FrameSequence.iteration_count) and the
     temporal filter averages them; with history, one iteration is blended in.
+    Either then doubles until it settles (FrameSequence.doubling).
     """
     size = inputs.size
     scale = 2 if settings.half_resolution else 1
@@ -221,20 +224,26 @@ def run_chain(inputs, settings, state, timer=None):
     def iterate(first=False):
         return _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
                               color_tx, color_rects, world_to_clip, first)
+    continues = sequence.has_history
     iterations = sequence.iteration_count(settings)
     for iteration_in_frame in range(iterations):
         outputs, blocks = iterate(first=iteration_in_frame == 0)
-    # A still that is not converged yet doubles its iterations until the running mean moves
-    # less than noise_threshold: the change from n to 2n iterations is about 2n's own error.
+    # Until the running mean moves less than noise_threshold, double the iterations: the change
+    # from n to 2n iterations is about 2n's own error. A frame with history first compares with
+    # the last frame's reflection: in a still shot it has settled already.
     reflection = None
-    while added := sequence.doubling(settings):
-        before = download(outputs["reflection_tx"]) if reflection is None else reflection
-        for _ in range(added):
-            outputs, blocks = iterate()
-        iterations += added
+    if sequence.doubling(settings):
         reflection = download(outputs["reflection_tx"])
-        if relative_change(before, reflection) <= settings.noise_threshold:
-            break
+        before = state.last_reflection if continues else None
+        while (before is None or before.shape != reflection.shape
+               or relative_change(before, reflection) > settings.noise_threshold) \
+                and (added := sequence.doubling(settings)):
+            before = reflection
+            for _ in range(added):
+                outputs, blocks = iterate()
+            iterations += added
+            reflection = download(outputs["reflection_tx"])
+    state.last_reflection = reflection
 
     final_tx = pool.get("final", size)
     get_pass("composite").draw(
@@ -246,6 +255,7 @@ def run_chain(inputs, settings, state, timer=None):
                               ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx)),
         uniform_blocks=blocks)
     _lap(timer, "composite", final_tx)
+    state.previous_radiance_tx = inputs.radiance_tx
     return ChainOutputs(**outputs, final_tx=final_tx, iterations=iterations)
 
 
@@ -260,8 +270,10 @@ def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz
     has_history = iteration.read_slot is not None
     history_mode = 0 if not has_history else (1 if first else 2)
     previous = state.previous_world_to_clip if has_history else world_to_clip
+    # A frame's own iterations see one instant: only its first compares with the last frame.
+    previous_radiance_tx = state.previous_radiance_tx if history_mode == 1 else inputs.radiance_tx
     params = chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous,
-                          hiz_rects, color_rects, still=sequence.still)
+                          hiz_rects, color_rects)
     blocks = (("params", params),)
     if state.dfg_tx is None:
         state.dfg_tx = pool.get("dfg", (DFG_SIZE, DFG_SIZE))
@@ -308,6 +320,7 @@ def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz
             [filtered_tx, count_tx],
             samplers=(("reflection_tx", spatial_tx), ("reflection_hit_tx", reflection_hit_tx),
                       ("depth_tx", inputs.depth_tx), ("motion_tx", inputs.motion_tx),
+                      ("radiance_tx", inputs.radiance_tx), ("previous_radiance_tx", previous_radiance_tx),
                       ("history_tx", history_tx), ("history_count_tx", history_count_in_tx)),
             uniform_blocks=blocks)
         _lap(timer, "temporal", filtered_tx)

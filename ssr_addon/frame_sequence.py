@@ -17,9 +17,6 @@ from dataclasses import dataclass
 
 STRIDE = 257
 MAX_ITERATIONS = STRIDE - 1
-# An animation's first frame (or the first after a cut) runs one full quad cycle, so every
-# pixel has originated a ray before the first frame is shown; later frames trace once.
-ANIMATION_FIRST_ITERATIONS = 4
 
 
 @dataclass(frozen=True)
@@ -34,12 +31,14 @@ class Iteration:
 class FrameSequence:
     """Hands out trace iterations frame by frame.
 
+    Every frame is rendered like a still: a frame with no history runs
+    `accumulate_frames` iterations, one with history runs one, and then either
+    doubles its iterations until its reflection settles (`noise_threshold`).
     still=True: every frame is a still (a single-frame render, a comparison
-    tile): it accumulates `accumulate_frames` iterations with no history from
-    other frames. still=False: an animation: the first frame runs one quad
-    cycle, every later one traces once, and the history carries from frame to
-    frame unless the range jumps or the camera cuts (the temporal filter does
-    the accumulating).
+    tile), with no history from other frames. still=False: an animation: the
+    history carries from frame to frame unless the range jumps or the camera
+    cuts, so a frame that holds still starts out as converged as the last one
+    and settles after an iteration or two.
     """
 
     def __init__(self, still=False):
@@ -71,14 +70,12 @@ class FrameSequence:
         """Iterations this frame runs (before any has run)."""
         if not settings.use_temporal or self.has_history:
             return 1
-        if self.still:
-            return min(settings.accumulate_frames, MAX_ITERATIONS)
-        return min(ANIMATION_FIRST_ITERATIONS, settings.accumulate_frames)
+        return min(settings.accumulate_frames, MAX_ITERATIONS)
 
     def doubling(self, settings):
-        """Iterations a still adds to double the ones it has run (its noise_threshold is not met yet),
-        or 0 where it may not: an animation frame, no temporal filter, the threshold off, the cap."""
-        if not (self.still and settings.use_temporal and settings.noise_threshold > 0):
+        """Iterations a frame adds to double the ones it has run (its noise_threshold is not met yet),
+        or 0 where it may not: no temporal filter, the threshold off, the cap."""
+        if not (settings.use_temporal and settings.noise_threshold > 0):
             return 0
         return min(self._iteration, MAX_ITERATIONS - self._iteration)
 

@@ -45,7 +45,6 @@ PARAMS_FIELDS = (
     ("int", "reproject_hit", "temporal filter reprojects the hit point (1) or the surface (0)"),
     ("int", "history_mode", "0 no history, 1 an animation's (clamped), 2 a still's own iterations (unclamped)"),
     ("float", "history_frames", "most frames a moving pixel averages"),
-    ("float", "static_history_frames", "most frames a pixel that holds still averages"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
 )

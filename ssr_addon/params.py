@@ -71,11 +71,11 @@ class ChainSettings:
     temporal_weight: float = _setting(
         0.9, "Largest share of the history in a temporally filtered pixel", 0.0, 0.99, group="temporal")
     accumulate_frames: int = _setting(
-        16, "Stills: jittered iterations accumulated; animations: most frames a pixel that holds still averages",
-        1, 256, group="temporal")
+        16, "Jittered iterations a frame accumulates when it has no history (a still, an animation's first "
+            "frame); a frame with history traces one", 1, 256, group="temporal")
     noise_threshold: float = _setting(
-        0.02, "Stills: after accumulate_frames, keep doubling the iterations (up to 256) until the reflection "
-             "changes by less than this share of its level from one doubling to the next (0: never)",
+        0.02, "Then keep doubling a frame's iterations (up to 256) until its reflection changes by less than "
+              "this share of its level from one doubling to the next (0: never)",
         0.0, 1.0, group="temporal")
     # Fading
     max_roughness: float = _setting(

@@ -8,6 +8,7 @@ import functools
 import os
 from dataclasses import dataclass
 
+from .frame_sequence import MAX_ITERATIONS
 from .gpu_backend import FullscreenPass
 from .gpu_params import glsl_struct
 
@@ -53,8 +54,10 @@ PASSES = {
                                                                 "normal_tx", "roughness_tx"), ("filtered_img",),
                                        libraries=("common_lib.glsl", "ggx_lib.glsl")),
     "temporal": PassDeclaration("temporal.glsl", ("reflection_tx", "reflection_hit_tx", "depth_tx", "motion_tx",
-                                                  "history_tx", "history_count_tx"),
-                                ("filtered_img", "count_img")),
+                                                  "radiance_tx", "previous_radiance_tx", "history_tx",
+                                                  "history_count_tx"),
+                                ("filtered_img", "count_img"),
+                                defines=(("STATIC_HISTORY_FRAMES", f"{MAX_ITERATIONS}.0"),)),
     "dfg_table": PassDeclaration("dfg_table.glsl", (), ("dfg_img",), libraries=("common_lib.glsl", "ggx_lib.glsl"),
                                  defines=(("DFG_SIZE", str(DFG_SIZE)), ("DFG_SAMPLES", str(DFG_SAMPLES)))),
     "composite": PassDeclaration("composite.glsl", ("combined_tx", "specular_color_tx", "specular_indirect_tx",

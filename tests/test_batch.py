@@ -19,13 +19,15 @@ def uninterrupted(dolly, tmp_path_factory):
     return folder, result
 
 
-def test_frames_carry_history_and_report_costs(uninterrupted):
+def test_frames_report_their_iterations_and_costs(uninterrupted):
     folder, result = uninterrupted
     with open(folder / "report.json", encoding="utf-8") as stream:
         report = json.load(stream)
     assert [entry["frame"] for entry in report["frames"]] == [1, 2, 3, 4]
-    # The first frame runs one quad cycle (every pixel originates a ray), later frames trace once.
-    assert [entry["iterations"] for entry in report["frames"]] == [4, 1, 1, 1]
+    # Every frame converges like a still: the first from accumulate_frames (16 at balanced)
+    # iterations, the others from their history (whatever the dolly uncovers starts afresh).
+    iterations = [entry["iterations"] for entry in report["frames"]]
+    assert iterations[0] >= 16 and all(1 <= count <= 256 for count in iterations), iterations
     assert report["mean_ms_per_frame"]["addon_over_render"] > 0
     assert "x the render" in result.stdout
     assert "4/4 frames" in result.stderr and "ETA" in result.stderr

@@ -217,3 +217,24 @@ def test_mirror_only_cutoff_and_non_finite_radiance_stay_finite(gpu_backend):
     confidence = arrays["reflection"][..., 3]
     assert (confidence[roughness > 0] == 0).all()
     assert (confidence[(roughness == 0) & (normal[..., 1] > 0.5)] > 0).sum() > 50, "mirrors keep SSR"
+
+
+def test_light_that_changes_under_a_still_camera_shows_at_once(gpu_backend):
+    """Nothing moves, but the lit scene doubles in brightness at frame 4 (an animated lamp):
+    the Vector pass shows nothing, yet the reflection must show the new light in that very
+    frame, not average it into the history a still shot keeps for ever. Mirror floor, so the
+    reflection is exactly the radiance it hits, without noise."""
+    width, height = 64, 40
+    projection = perspective(width, height)
+    depth, normal = raycast(width, height, projection, [((-30.0, -1.0, -9.0), (30.0, 30.0, -8.0))], floor_y=-1.0)
+    settings = ChainSettings(border_fade=0.0, camera_facing_fade=0.0)
+    state = animation_state()
+    lit = np.ones((height, width, 4), np.float32)
+    for _ in range(4):
+        before, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, lit, state=state)
+    after, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, 2 * lit, state=state)
+    floor = (normal[..., 1] > 0.5) & (before["reflection"][..., 3] > 0.99) & (after["reflection"][..., 3] > 0.99)
+    assert floor.sum() > 300
+    ratio = after["reflection"][floor][:, :3] / before["reflection"][floor][:, :3]
+    print(f"reflection after the light doubled: {np.median(ratio):.3f} x, lowest {ratio.min():.3f} x")
+    assert np.abs(ratio - 2.0).max() <= 0.02, "the reflection lags behind the light"

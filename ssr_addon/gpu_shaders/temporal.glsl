@@ -6,16 +6,21 @@
  *
  * Inputs:  reflection_tx (this frame's, spatially filtered, premultiplied), reflection_hit_tx
  *          (mean hit distance and uv), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
+ *          radiance_tx and previous_radiance_tx (the lit scene now and in the history's frame),
  *          history_tx (last output: premultiplied radiance, confidence), history_count_tx (frames in it).
  * Outputs: filtered_img (premultiplied radiance, confidence),
  *          count_img (frames accumulated; where the history was read, in pixels;
  *                     motion seen: the larger Vector-pass length at the pixel and at its hit).
  *
- * A pixel holds still when the camera did not move it (its history lies exactly
- * where it is) and the Vector pass shows no motion at it or at its hit, now or
- * in the history (which records the motion it saw). Such a pixel's history is
- * still right: it keeps averaging, unclipped, up to static_history_frames, so
- * a still shot converges to what a long still shows. Anything else in an
+ * Where the camera did not move a pixel (its history lies exactly where it is)
+ * but the light at its hit is not what it was (an animated lamp or material,
+ * which the Vector pass does not show), the history is stale: the pixel starts
+ * afresh, and its frame converges like a still. A pixel holds still when the
+ * camera did not move it and the Vector pass shows no motion at it or at its
+ * hit, now or in the history (which records the motion it saw). Such a
+ * pixel's history is still right: it keeps averaging, unclipped, like a
+ * still's iterations, so a still shot converges to what a long still shows
+ * and then holds steady. Anything else in an
  * animation (history_mode 1) clips the history to this frame's 3x3
  * neighbourhood, mean +- 1.25 standard deviations (Salvi's variance
  * clipping), which rejects stale history (disocclusion, moving objects), and
@@ -26,6 +31,9 @@
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
+/* Largest change of the light at a hit between frames that still counts as the same light:
+ * EEVEE renders an unchanged scene the same every frame, Cycles with its seed animated does not. */
+#define RADIANCE_TOLERANCE 0.05
 
 /* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
 vec2 previous_screen_position(vec3 view_point)
@@ -85,6 +93,19 @@ float motion_seen(ivec2 pixel, vec4 hit)
   return is_finite(vec4(motion)) ? motion : 1e6; /* unknown motion: assume it moves */
 }
 
+/* The light at the pixel's hit is what the history saw (the camera held the pixel: the same texel). */
+bool hit_light_unchanged(vec4 hit)
+{
+  if (!(hit.x > 0.0)) {
+    return true; /* no hit: the reflection is the fallback's, which SSR does not show */
+  }
+  ivec2 hit_texel = texel_at(hit.yz * params.viewport_size);
+  vec3 now = texelFetch(radiance_tx, hit_texel, 0).rgb;
+  vec3 before = texelFetch(previous_radiance_tx, hit_texel, 0).rgb;
+  vec3 change = abs(now - before);
+  return all(lessThanEqual(change, RADIANCE_TOLERANCE * max(now, before) + 1e-6));
+}
+
 void main()
 {
   ivec2 pixel = ivec2(gl_FragCoord.xy);
@@ -109,13 +130,15 @@ void main()
   if (!is_finite(history) || !(history_count >= 1.0)) {
     return;
   }
-  bool holds_still = params.history_mode == 2 ||
-                     (all(lessThan(abs(previous_uv - uv) * params.viewport_size, vec2(0.01))) &&
-                      max(motion, history_record.w) < 0.01);
+  bool camera_held_it = all(lessThan(abs(previous_uv - uv) * params.viewport_size, vec2(0.01)));
+  if (params.history_mode == 1 && camera_held_it && !hit_light_unchanged(hit)) {
+    return;
+  }
+  bool holds_still = params.history_mode == 2 || (camera_held_it && max(motion, history_record.w) < 0.01);
   if (!holds_still) {
     history = variance_clip(pixel, history);
   }
-  float most_frames = holds_still ? params.static_history_frames : params.history_frames;
+  float most_frames = holds_still ? STATIC_HISTORY_FRAMES : params.history_frames;
   float count = min(history_count + 1.0, most_frames);
   filtered_img = mix(history, current, 1.0 / count);
   count_img = vec4(count, previous_uv * params.viewport_size, motion);
