@@ -37,7 +37,8 @@ class FramePasses:
     specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
     f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
     motion: np.ndarray           # (H, W, 2) screen offset to the previous frame, pixels, y up (Vector pass)
-    specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces, before FG: probes/world
+    specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces, before FG: probes/world and,
+                                   # with the scene's ray tracing on, EEVEE's own traced reflections
                                    # (EEVEE); world, emissive and other surfaces (Cycles)
     specular_direct: np.ndarray  # (H, W, 3) lamp highlights (lamps the camera cannot see), kept as they are
     view_matrix: np.ndarray      # (4, 4) world to view
@@ -83,8 +84,10 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     """Render SCENE's current frame with ENGINE and return its FramePasses.
 
     SAMPLES and RESOLUTION default to the scene's own (render_samples, render_size).
-    EEVEE renders with its ray tracing off (probe/world reflections, what SSR
-    improves on) unless `eevee_raytracing` names a preset of EEVEE_RAYTRACING.
+    EEVEE renders with the scene's own ray tracing setting (off: probe/world
+    reflections; on: its screen-space diffuse light and reflections too, which
+    SSR replaces where its rays hit), or with ray tracing on as
+    `eevee_raytracing` names a preset of EEVEE_RAYTRACING.
     `split_lamp_specular=False` skips the render that splits lamp highlights off
     (EEVEE: lamps only; Cycles: lamps hidden) when nothing will replace the
     indirect specular (then specular_direct is zero).
@@ -162,8 +165,8 @@ def _configure_render(scene, view_layer, engine, samples, resolution, changes, e
         changes.set(view_layer, flag, True)
     if engine == "eevee":
         changes.set(scene.eevee, "taa_render_samples", samples)
-        changes.set(scene.eevee, "use_raytracing", eevee_raytracing is not None)
         if eevee_raytracing is not None:
+            changes.set(scene.eevee, "use_raytracing", True)
             changes.set(scene.eevee, "ray_tracing_method", "SCREEN")
             for option, value in EEVEE_RAYTRACING[eevee_raytracing].items():
                 changes.set(scene.eevee.ray_tracing_options, option, value)
@@ -252,9 +255,11 @@ def _black_world(changes):
 
 
 def _lamp_specular(scene, folder):
-    """EEVEE's specular light with the world black and light probes hidden: lamps alone."""
+    """EEVEE's specular light with the world black, light probes hidden and ray tracing off
+    (it would reflect the lamp-lit scene): lamps alone."""
     with TemporaryChanges() as lamp_only:
         lamp_only.set(scene, "world", _black_world(lamp_only))
+        lamp_only.set(scene.eevee, "use_raytracing", False)
         for obj in scene.objects:
             if obj.type == "LIGHT_PROBE":
                 lamp_only.set(obj, "hide_render", True)

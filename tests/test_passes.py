@@ -172,3 +172,31 @@ def test_a_run_keeps_one_black_world_and_removes_it(roughness_scene):
     assert alone.specular_direct.max() > 0, "the lamp must light the planes"
     np.testing.assert_allclose(first.specular_direct, alone.specular_direct, atol=1e-5)
     np.testing.assert_allclose(second.specular_direct, alone.specular_direct, atol=1e-5)
+
+
+def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone():
+    """A scene with EEVEE's ray tracing on keeps it: its screen-space diffuse light brightens
+    the corridor's walls (lit by the emissive stripes across it), where the add-on used to
+    switch it off. The lamp-only render still holds lamps alone: ray tracing there would add
+    the lamp-lit scene's reflections to the highlights SSR leaves in place."""
+    from ssr_addon.scene_io import load_scene
+    from conftest import SCENES
+    import os
+    scene = load_scene(os.path.join(SCENES, "glossy_corridor.py"))
+    lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+    lamp.location = (0, 4, 2.5)
+    lamp.data.energy = 200
+    scene.collection.objects.link(lamp)
+    as_authored = render_passes(scene, "eevee", samples=4, resolution=(80, 45))
+    scene.eevee.use_raytracing = True
+    traced = render_passes(scene, "eevee", samples=4, resolution=(80, 45))
+    assert scene.eevee.use_raytracing
+
+    def diffuse_level(passes):
+        rough = np.abs(passes.roughness - 0.7) < 0.01  # the side walls (the stripes are 1.0)
+        specular = passes.specular_color * (passes.specular_indirect + passes.specular_direct)
+        return float((passes.combined[..., :3] - specular)[rough].mean())
+    print(f"walls: {diffuse_level(as_authored):.4f} as authored, {diffuse_level(traced):.4f} ray traced")
+    assert diffuse_level(traced) >= 1.1 * diffuse_level(as_authored)
+    assert as_authored.specular_direct.max() > 0, "the lamp must light the floor"
+    np.testing.assert_allclose(traced.specular_direct, as_authored.specular_direct, atol=1e-4, rtol=0.02)
