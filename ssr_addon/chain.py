@@ -161,9 +161,26 @@ def _lap(timer, stage, texture):
         timer.lap(stage, texture)
 
 
-def chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous_world_to_clip,
-                 hiz_rects, color_rects):
-    """The uniform block of one iteration, every field by name (gpu_params.PARAMS_FIELDS)."""
+@dataclass
+class FrameContext:
+    """What every iteration of one frame shares: its inputs, settings and pyramids."""
+    inputs: ChainInputs
+    settings: object             # ChainSettings
+    state: ChainState
+    timer: object                # StageTimer or None
+    size: tuple                  # (width, height) of the frame
+    trace_size: tuple            # of the ray textures (half resolution: half of it)
+    hiz_tx: object
+    hiz_rects: list              # each Hi-Z level's place in hiz_tx
+    color_tx: object
+    color_rects: list
+    world_to_clip: np.ndarray
+
+
+def chain_params(frame, iteration, history_mode, previous_world_to_clip):
+    """The uniform block of one iteration of FRAME, every field by name (gpu_params.PARAMS_FIELDS)."""
+    inputs, settings, size, trace_size = frame.inputs, frame.settings, frame.size, frame.trace_size
+    hiz_rects, color_rects = frame.hiz_rects, frame.color_rects
     view = np.asarray(inputs.view_matrix, np.float64)
     projection = np.asarray(inputs.projection_matrix, np.float64)
     history_frames = 1.0 / (1.0 - settings.temporal_weight)
@@ -219,11 +236,12 @@ def run_chain(inputs, settings, state, timer=None):
     _lap(timer, "color_pyramid", color_tx)
 
     world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
+    frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects, color_tx, color_rects,
+                         world_to_clip)
     sequence = state.sequence
 
     def iterate(first=False):
-        return _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
-                              color_tx, color_rects, world_to_clip, first)
+        return _run_iteration(frame, first)
     continues = sequence.has_history
     iterations = sequence.iteration_count(settings)
     for iteration_in_frame in range(iterations):
@@ -259,11 +277,12 @@ def run_chain(inputs, settings, state, timer=None):
     return ChainOutputs(**outputs, final_tx=final_tx, iterations=iterations)
 
 
-def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects, color_tx, color_rects,
-                   world_to_clip, first):
-    """One trace iteration: trace, resolve, spatial and temporal filters; returns their textures by
-    ChainOutputs field and its uniform blocks. FIRST: the frame's first iteration (its history is
-    the previous frame's)."""
+def _run_iteration(frame, first):
+    """One trace iteration of FRAME (a FrameContext): trace, resolve, spatial and temporal filters;
+    returns their textures by ChainOutputs field and its uniform blocks. FIRST: the frame's first
+    iteration (its history is the previous frame's)."""
+    inputs, settings, state, timer = frame.inputs, frame.settings, frame.state, frame.timer
+    size, trace_size, world_to_clip = frame.size, frame.trace_size, frame.world_to_clip
     pool = state.pool
     sequence = state.sequence
     iteration = sequence.next_iteration(keeps_history=settings.use_temporal)
@@ -272,8 +291,7 @@ def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz
     previous = state.previous_world_to_clip if has_history else world_to_clip
     # A frame's own iterations see one instant: only its first compares with the last frame.
     previous_radiance_tx = state.previous_radiance_tx if history_mode == 1 else inputs.radiance_tx
-    params = chain_params(inputs, settings, size, trace_size, iteration, history_mode, previous,
-                          hiz_rects, color_rects)
+    params = chain_params(frame, iteration, history_mode, previous)
     blocks = (("params", params),)
     if state.dfg_tx is None:
         state.dfg_tx = pool.get("dfg", (DFG_SIZE, DFG_SIZE))
@@ -284,7 +302,7 @@ def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz
     get_pass("trace").draw(
         [ray_hit_tx, ray_dir_tx, ray_stats_tx],
         samplers=(("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
-                  ("roughness_tx", inputs.roughness_tx), ("hiz_tx", hiz_tx)),
+                  ("roughness_tx", inputs.roughness_tx), ("hiz_tx", frame.hiz_tx)),
         uniform_blocks=blocks)
     _lap(timer, "trace", ray_hit_tx)
 
@@ -294,7 +312,7 @@ def _run_iteration(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz
         [resolved_tx, reflection_hit_tx],
         samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
                   ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
-                  ("color_tx", color_tx)),
+                  ("color_tx", frame.color_tx)),
         uniform_blocks=blocks)
     _lap(timer, "resolve", resolved_tx)
 

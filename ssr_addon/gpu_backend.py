@@ -178,3 +178,8 @@ class StageTimer:
         now = time.perf_counter()
         self.milliseconds[stage] = self.milliseconds.get(stage, 0.0) + (now - self._start) * 1000.0
         self._start = now
+
+    def split(self, stage, part, milliseconds):
+        """Count MILLISECONDS of STAGE's time (already closed) as PART's instead."""
+        self.milliseconds[stage] -= milliseconds
+        self.milliseconds[part] = self.milliseconds.get(part, 0.0) + milliseconds

@@ -7,6 +7,7 @@ image order (row 0 is the top row).
 import contextlib
 import os
 import tempfile
+import time
 from dataclasses import dataclass
 
 import bpy
@@ -48,6 +49,7 @@ class FramePasses:
     engine: str
     samples: int                 # samples per pixel the engine rendered with
     material_warnings: tuple = ()  # materials whose roughness/F0 the AOVs could not read, and what was assumed
+    split_ms: float = 0.0        # of the render time, the second render that split specular_direct off
 
     @property
     def size(self):
@@ -105,13 +107,15 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
         material_warnings = tuple(add_material_aovs(scene, view_layer, changes))
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
+        split_start = time.perf_counter()
+        split = False
         width, height = scene.render.resolution_x, scene.render.resolution_y
         if engine == "eevee":
             # EEVEE's "Specular Light" (glossy direct) holds lamp highlights and
             # probe/world reflections together; a lamp-only render splits them.
             specular_all = _layer(layers, "Glossy Direct")
-            specular_direct = _lamp_specular(scene, folder) if split_lamp_specular and _has_lamps(scene) \
-                else np.zeros_like(specular_all)
+            split = split_lamp_specular and _has_lamps(scene)
+            specular_direct = _lamp_specular(scene, folder) if split else np.zeros_like(specular_all)
             specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
@@ -121,9 +125,11 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             glossy_direct = _layer(layers, "Glossy Direct")
             glossy_indirect = _layer(layers, "Glossy Indirect")
             lamps = _offscreen_lamps(scene) if split_lamp_specular else []
+            split = bool(lamps)
             emitter_specular = _emitter_specular(scene, folder, lamps) if lamps else glossy_direct
             specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
             specular_indirect = glossy_indirect + emitter_specular
+        split_ms = (time.perf_counter() - split_start) * 1000.0 if split else 0.0
         view, projection = camera_matrices(scene, width, height)
     aov = _layer(layers, ROUGHNESS_AOV)
     passes_shape = aov.shape[:2]
@@ -148,7 +154,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         specular_direct=specular_direct,
         view_matrix=view, projection_matrix=projection,
         clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine, samples=samples,
-        material_warnings=material_warnings)
+        material_warnings=material_warnings, split_ms=split_ms)
 
 
 def _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing=None):

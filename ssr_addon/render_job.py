@@ -104,6 +104,8 @@ def render_frame(scene, request, state=None):
     passes = render_passes(scene, request.engine, request.samples, request.resolution,
                            EEVEE_RAYTRACING_METHODS.get(request.method), split_lamp_specular=use_ssr)
     timer.lap("render")
+    if passes.split_ms:  # the add-on's, not the engine's: it asked for the second render
+        timer.split("render", "lamp_split", passes.split_ms)
     height, width = passes.depth.shape
     images = {"passes": passes, "final": passes.combined, "stats": {}}
     if not use_ssr:
