@@ -1,0 +1,126 @@
+"""The charts: speed against accuracy, the contact sheet and the stability cases (matplotlib, Agg)."""
+import numpy as np
+
+from ..outputs import written_together
+from .images import display
+from .stability import FLICKER_LIMIT, SEAM_LIMIT
+
+
+def _pyplot():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as pyplot
+    return pyplot
+
+
+def _save_figure(figure, path, palette=False):
+    """Write FIGURE as a PNG, atomically; PALETTE: 256 colours (a contact sheet shrinks about threefold)."""
+    with written_together([path]) as (partial,):
+        if palette:
+            from PIL import Image  # matplotlib's own image library
+            figure.canvas.draw()
+            pixels = np.asarray(figure.canvas.buffer_rgba())[..., :3]
+            Image.fromarray(pixels).quantize(colors=256).save(partial, format="PNG", optimize=True)
+        else:
+            figure.savefig(partial, format="png")
+    _pyplot().close(figure)
+
+
+def chart_speed_vs_accuracy(report, path):
+    """Milliseconds per frame against FLIP on reflective pixels, one point per contender, Pareto front joined."""
+    pyplot = _pyplot()
+    entries = [e for e in report["contenders"] if e["flip_reflective"] is not None]
+    figure, axes = pyplot.subplots(figsize=(9, 4.5), dpi=100)
+    # Points carry numbers, named beside the plot: the names would overlap where points crowd.
+    for number, entry in enumerate(entries, 1):
+        colour = "tab:red" if entry["pareto"] else "tab:blue"
+        axes.scatter(entry["frame_ms"], entry["flip_reflective"], color=colour, zorder=3,
+                     label=f"{number}  {entry['name']}")
+        axes.annotate(str(number), (entry["frame_ms"], entry["flip_reflective"]), fontsize=7,
+                      xytext=(4, 3), textcoords="offset points")
+    front = sorted((e for e in entries if e["pareto"]), key=lambda e: e["frame_ms"])
+    axes.step([e["frame_ms"] for e in front], [e["flip_reflective"] for e in front], where="post",
+              color="tab:red", linewidth=1, label="Pareto front")
+    reference_ms = [info["render_ms"] for info in report["reference"]["per_scene"].values()]
+    axes.axvline(np.mean(reference_ms), color="grey", linestyle="--", linewidth=1,
+                 label=f"Cycles reference ({report['reference']['samples']} spp, error 0 by definition)")
+    axes.set_xscale("log")
+    axes.set_xlabel("wall time per frame, whole method (ms, log scale)")
+    axes.set_ylabel("mean FLIP on reflective pixels (lower is better)")
+    width, height = report["resolution"]
+    axes.set_title(f"Speed vs accuracy at {width}x{height}, mean over {', '.join(report['scenes'])}", fontsize=9)
+    axes.grid(True, which="both", alpha=0.3)
+    axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
+    figure.tight_layout()
+    _save_figure(figure, path)
+
+
+def contact_sheet(sheet, path):
+    """Every contender beside the reference, per scene: the image and its FLIP error map.
+
+    The reference row shows the reflective-pixel mask in place of an error map.
+    """
+    pyplot = _pyplot()
+    from matplotlib import colormaps
+    scenes = list(sheet)
+    names = list(sheet[scenes[0]])
+    height, width = sheet[scenes[0]]["reference"][0].shape[:2]
+    dpi = 100
+    label_inches, tile_inches = 2.0, (width / dpi, height / dpi)
+    figure = pyplot.figure(figsize=(label_inches + 2 * len(scenes) * tile_inches[0],
+                                    (len(names) + 0.3) * tile_inches[1]), dpi=dpi)
+    for row, name in enumerate(names):
+        for column, scene in enumerate(scenes):
+            image, second = sheet[scene][name]
+            tiles = (display(image), np.repeat(second[..., None], 3, -1).astype(np.float32) if name == "reference"
+                     else colormaps["magma"](np.clip(second, 0, 1))[..., :3])
+            for offset, tile in enumerate(tiles):
+                left = (label_inches + (2 * column + offset) * tile_inches[0]) / figure.get_figwidth()
+                bottom = 1 - (row + 1.3) * tile_inches[1] / figure.get_figheight()
+                axes = figure.add_axes((left, bottom, tile_inches[0] / figure.get_figwidth(),
+                                        tile_inches[1] / figure.get_figheight()))
+                axes.imshow(tile, interpolation="nearest")
+                axes.set_axis_off()
+                if row == 0:
+                    axes.set_title(f"{scene}: {('image', 'mask / FLIP')[offset]}", fontsize=6, pad=2)
+        figure.text(0.01, 1 - (row + 0.8) * tile_inches[1] / figure.get_figheight(), name, fontsize=7,
+                    va="center")
+    _save_figure(figure, path, palette=True)
+
+
+def chart_stability(stability, path):
+    """Per case: error against the fallback's, seam strength, flicker and ghosting, with the tested limits."""
+    pyplot = _pyplot()
+    cases = stability["cases"]
+    names = [case.removeprefix("stability_") for case in cases]
+    positions = np.arange(len(cases))
+    figure, axes = pyplot.subplots(2, 2, figsize=(10, 6), dpi=80)
+
+    def values(key):
+        return [np.nan if cases[c].get(key) is None else cases[c][key] for c in cases]
+    panel = axes[0, 0]
+    panel.bar(positions - 0.2, values("flip_ssr_mean"), 0.4, label="ssr")
+    panel.bar(positions + 0.2, values("flip_fallback_mean"), 0.4, label="probe/world fallback")
+    panel.set_title("mean FLIP on reflective pixels vs Cycles", fontsize=9)
+    panel.legend(fontsize=7)
+    panel = axes[0, 1]
+    panel.bar(positions, values("seam_max"), 0.6)
+    panel.axhline(SEAM_LIMIT, color="tab:red", linestyle="--", linewidth=1, label="test limit")
+    panel.set_title("seam strength (0 smooth fade, 1 one-pixel cut)", fontsize=9)
+    panel.legend(fontsize=7)
+    panel = axes[1, 0]
+    panel.bar(positions - 0.2, values("flicker"), 0.4, label="default")
+    panel.bar(positions + 0.2, values("flicker_temporal_off"), 0.4, label="temporal off")
+    panel.axhline(FLICKER_LIMIT, color="tab:red", linestyle="--", linewidth=1, label="test limit")
+    panel.set_title("flicker, static scenes (relative frame-to-frame change)", fontsize=9)
+    panel.legend(fontsize=7)
+    panel = axes[1, 1]
+    panel.bar(positions - 0.2, values("ghosting_flip_hit"), 0.4, label="reproject hit point")
+    panel.bar(positions + 0.2, values("ghosting_flip_surface"), 0.4, label="reproject surface point")
+    panel.set_title("ghosting: FLIP vs per-frame references, frames 2+", fontsize=9)
+    panel.legend(fontsize=7)
+    for panel in axes.ravel():
+        panel.set_xticks(positions, names, fontsize=7, rotation=20)
+        panel.tick_params(axis="y", labelsize=7)
+    figure.tight_layout()
+    _save_figure(figure, path)

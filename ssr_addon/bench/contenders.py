@@ -1,0 +1,75 @@
+"""The contenders (the peers, our presets, our stages off in turn) and rendering them taking turns."""
+import fnmatch
+from dataclasses import dataclass, field, fields, replace
+
+from ..chain import ChainState
+from ..errors import SSRError
+from ..params import PRESETS, STAGE_TOGGLES, ChainSettings
+from ..passes import lamp_world_for_run
+from ..render_job import RenderRequest, render_frame
+
+
+@dataclass(frozen=True)
+class Contender:
+    name: str
+    method: str
+    settings: ChainSettings = field(default_factory=ChainSettings)
+
+    def overrides(self):
+        """Settings that differ from the defaults, for the record."""
+        defaults = ChainSettings()
+        return {f.name: getattr(self.settings, f.name) for f in fields(ChainSettings)
+                if getattr(self.settings, f.name) != getattr(defaults, f.name)}
+
+
+def all_contenders():
+    """Every contender: the peers a user would pick instead, our presets, our stages off in turn."""
+    contenders = [Contender("none", "none"), Contender("eevee-rt", "eevee-rt"),
+                  Contender("eevee-rt-high", "eevee-rt-high")]
+    for name, overrides in PRESETS.items():
+        contenders.append(Contender(f"ssr {name}", "ssr", replace(ChainSettings(), **overrides)))
+    for toggle in STAGE_TOGGLES:
+        contenders.append(Contender(f"ssr {toggle}=off", "ssr", replace(ChainSettings(), **{toggle: False})))
+    return contenders
+
+
+def select_contenders(patterns):
+    contenders = all_contenders()
+    if not patterns:
+        return contenders
+    chosen = [c for c in contenders if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
+    if not chosen:
+        raise SSRError(f"--contenders {' '.join(patterns)}: matches none of {', '.join(c.name for c in contenders)}")
+    return chosen
+
+
+def run_contenders(scene, contenders, options):
+    """Render every contender for options.frames frames, taking turns frame by frame.
+
+    Taking turns spreads any change in the machine's load over all contenders
+    alike. Each contender keeps its own ChainState and draws each frame's
+    random numbers as run_render does, so its frames are those of a still
+    animation, with temporal history. Returns {name: (final image of the last
+    frame, {stage: milliseconds})}, each stage's time the fastest over the
+    frames after the first (other processes only ever add time; a first frame
+    accumulates a still's iterations, and the process's first render is
+    quicker than any later one).
+    """
+    states = {contender.name: ChainState() for contender in contenders}
+    finals, laps = {}, {contender.name: [] for contender in contenders}
+    with lamp_world_for_run():  # as a batch render keeps it
+        for frame in range(scene.frame_current, scene.frame_current + options.frames):
+            for contender in contenders:
+                state = states[contender.name]
+                state.begin_frame(frame)
+                request = RenderRequest(out_dir=options.out_dir, method=contender.method,
+                                        resolution=options.resolution, samples=options.eevee_samples,
+                                        settings=contender.settings)
+                images, timer = render_frame(scene, request, state)
+                finals[contender.name] = images["final"][..., :3]
+                laps[contender.name].append(timer.milliseconds)
+    results = {}
+    for name, frames in laps.items():
+        timed = frames[1:] or frames
+        results[name] = (finals[name], {stage: min(frame.get(stage, 0.0) for frame in timed) for stage in frames[0]})
+    return results

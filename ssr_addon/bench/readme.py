@@ -1,0 +1,121 @@
+"""The README's generated bench block: the chart, the contender, stage and stability tables."""
+import os
+import shlex
+
+from ..outputs import rewrite_readme_block
+from .metrics import MIN_SPECULAR_COLOR
+from .speed import COPY_PASS_LARGE, _size_label
+
+README_BLOCK = "bench"  # README.md's generated block: <!-- bench:start --> ... <!-- bench:end -->
+
+# The issue's goal: our balanced preset's error on reflective pixels at most this share of
+# EEVEE's own screen-space ray tracing's, on every scene.
+VERSUS_EEVEE_GOAL = 0.8
+
+
+def versus_eevee(rows, ours="ssr balanced", theirs="eevee-rt"):
+    """Per scene: (FLIP ours, FLIP theirs, rel. MAE ours, rel. MAE theirs) on reflective pixels."""
+    by_key = {(row["scene"], row["contender"]): row for row in rows}
+    table = {}
+    for scene in dict.fromkeys(row["scene"] for row in rows):
+        mine, other = by_key.get((scene, ours)), by_key.get((scene, theirs))
+        if mine and other and None not in (mine["flip_reflective"], other["flip_reflective"]):
+            table[scene] = (mine["flip_reflective"], other["flip_reflective"],
+                            mine["mae_reflective"], other["mae_reflective"])
+    return table
+
+
+def _versus_eevee_lines(report):
+    table = versus_eevee(report["results"])
+    if not table:
+        return []
+    lines = ["", f"Per scene, `ssr balanced` against EEVEE's screen-space ray tracing (`eevee-rt`) on the "
+                 f"reflective pixels; the goal is a ratio of at most {VERSUS_EEVEE_GOAL}:", "",
+             "| scene | FLIP ours | FLIP eevee-rt | ratio | rel. MAE ours | rel. MAE eevee-rt | ratio |",
+             "|---|---:|---:|---:|---:|---:|---:|"]
+    for scene, (flip_ours, flip_eevee, mae_ours, mae_eevee) in table.items():
+        lines.append(f"| {scene} | {flip_ours:.4f} | {flip_eevee:.4f} | {flip_ours / flip_eevee:.2f} | "
+                     f"{mae_ours:.4f} | {mae_eevee:.4f} | {mae_ours / mae_eevee:.2f} |")
+    return lines
+
+
+def _contenders_argument(report):
+    patterns = report.get("contender_patterns")
+    return " --contenders " + " ".join(shlex.quote(p) for p in patterns) if patterns else ""
+
+
+def readme_block(report, out_dir, readme_dir):
+    """Markdown for the README: the chart, the contender table and the stability table."""
+    folder = os.path.relpath(out_dir, readme_dir).replace(os.sep, "/")
+    width, height = report["resolution"]
+    copy_ms = report["copy_pass_ms"][f"{width}x{height}"]
+    lines = [
+        f"Latest run: `python -m ssr_addon bench --scenes {' '.join(report['scenes'])} "
+        f"--resolution {width}x{height} --out {folder} --readme README.md{_contenders_argument(report)}` on "
+        f"Blender {report['blender']}, "
+        f"{report['gpu']['renderer']}: a software GPU, so every engine render is slow. Reference: Cycles, "
+        f"{report['reference']['samples']} samples; EEVEE: {report['eevee_samples']} samples. Time: wall time "
+        f"per frame of the whole method, engine render included; *add-on ms*: our own share of it, everything "
+        f"but the engine's render (in scenes with lamps SSR needs a second, lamp-only render: `lamp_split`, "
+        f"counted here); the contenders take turns over {report['frames_per_contender']} frames and each "
+        f"stage counts its fastest after the first; ×copy: as a multiple of a "
+        f"full-screen copy pass ({copy_ms:.3f} ms here, "
+        f"{report['copy_pass_ms'][_size_label(COPY_PASS_LARGE)]:.3f} ms at 1600x900). Errors: mean over the "
+        f"scenes, on the last frame; *refl.* is the reflective pixels (roughness ≤ "
+        f"{report['reflective_mask']['max_roughness']}, specular colour ≥ {MIN_SPECULAR_COLOR}).",
+        "",
+        f"![speed vs accuracy]({folder}/speed_vs_accuracy.png)",
+        "",
+        "| contender | ms/frame | add-on ms | ×copy | FLIP refl. | rel. MAE refl. | FLIP all | PSNR refl. | SSIM refl. "
+        "| Pareto |",
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|:-:|",
+    ]
+    for entry in report["contenders"]:
+        lines.append(f"| {entry['name']} | {entry['frame_ms']:.0f} | {entry['addon_ms']:.0f} | "
+                     f"{entry['frame_x_copy']:.0f} | "
+                     f"{_cell(entry['flip_reflective'], 4)} | {_cell(entry['mae_reflective'], 4)} | "
+                     f"{_cell(entry['flip_all'], 4)} | "
+                     f"{_cell(entry['psnr_reflective'], 2)} | {_cell(entry['ssim_reflective'], 3)} | "
+                     f"{'✓' if entry['pareto'] else ''} |")
+    lines += _versus_eevee_lines(report)
+    ours = [e for e in report["contenders"] if e["method"] == "ssr"]
+    if ours:
+        stages = [s for s in ours[0]["stages_ms"] if s != "render"]
+        lines += ["", "Stages of ours (ms, ×copy):", "",
+                  "| contender | " + " | ".join(stages) + " |", "|---|" + "---:|" * len(stages)]
+        for entry in ours:
+            lines.append(f"| {entry['name']} | " + " | ".join(
+                f"{entry['stages_ms'].get(s, 0):.2f} ({entry['stages_x_copy'].get(s, 0):.1f})" for s in stages) + " |")
+    if "stability" in report:
+        limits = report["stability"]["limits"]
+        lines += ["", f"Stability cases over frames {'-'.join(map(str, report['stability']['frames']))}, with the "
+                      f"limits the tests assert: FLIP at most the fallback's + {limits['fallback_margin_flip']}, "
+                      f"energy excess at most {limits['energy_tolerance']}, seam below {limits['seam']}, "
+                      f"flicker below {limits['flicker']}, hit-point ghosting below surface-point ghosting.",
+                  "", f"![stability]({folder}/stability.png)", "",
+                  "| case | motion | finite | FLIP ssr | FLIP fallback | energy excess | seam | flicker (temporal off) "
+                  "| ghosting FLIP hit / surface |",
+                  "|---|---|:-:|---:|---:|---:|---:|---:|---:|"]
+        for case, values in report["stability"]["cases"].items():
+            flicker_cell = _cell(values.get("flicker"), 4)
+            if values.get("flicker_temporal_off") is not None:
+                flicker_cell += f" ({_cell(values['flicker_temporal_off'], 4)})"
+            ghosting = (f"{_cell(values.get('ghosting_flip_hit'), 4)} / {_cell(values.get('ghosting_flip_surface'), 4)}"
+                        if values.get("ghosting_flip_hit") is not None else "-")
+            lines.append(f"| {case.removeprefix('stability_')} | {values['motion'] or 'static'} | "
+                         f"{'yes' if values['finite'] else '**NO**'} | {_cell(values['flip_ssr_mean'], 4)} | "
+                         f"{_cell(values['flip_fallback_mean'], 4)} | {_cell(values['energy_excess_max'], 4)} | "
+                         f"{_cell(values['seam_max'], 3)} | {flicker_cell} | {ghosting} |")
+    lines += ["", f"Contact sheet (every contender beside the reference, FLIP error maps): "
+                  f"[{folder}/contact_sheet.png]({folder}/contact_sheet.png)"]
+    return "\n".join(lines)
+
+
+def _cell(value, digits):
+    return "-" if value is None else f"{value:.{digits}f}"
+
+
+def update_readme(readme_path, report, out_dir):
+    """Replace the bench block in README (adding it under '## Benchmark' if absent)."""
+    readme_dir = os.path.dirname(os.path.abspath(readme_path))
+    rewrite_readme_block(readme_path, README_BLOCK, readme_block(report, out_dir, readme_dir), "Benchmark")

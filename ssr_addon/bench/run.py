@@ -1,0 +1,140 @@
+"""The whole bench run (`python -m ssr_addon bench`): options, checks, scoring every contender on every scene."""
+import os
+import tempfile
+from dataclasses import dataclass
+
+import bpy
+
+from ..errors import SSRError
+from ..gpu_backend import describe_gpu, ensure_backend
+from ..outputs import prepare_output_folder
+from ..params import ChainSettings
+from ..render_job import parse_resolution
+from ..scene_io import load_scene
+from .contenders import run_contenders, select_contenders
+from .metrics import MIN_SPECULAR_COLOR, _format, accuracy
+from .readme import update_readme
+from .references import DEFAULT_CACHE, REFERENCE_SAMPLES, REFERENCE_SEEDS, render_reference
+from .report import summarise_contenders, write_outputs
+from .scenes import resolve_scene, scene_label
+from .speed import COPY_PASS_LARGE, COPY_PASS_REPEATS, _size_label, copy_pass_ms
+from .stability import ENERGY_TOLERANCE, FALLBACK_MARGIN, FLICKER_LIMIT, SEAM_LIMIT, STABILITY_FRAMES, run_stability
+
+DEFAULT_SCENES = ("mirror_floor", "glossy_corridor", "rough_spheres")
+DEFAULT_RESOLUTION = (160, 90)
+DEFAULT_FRAMES = 3
+# EEVEE samples of every contender's render, whatever the scene says, so contenders and runs compare.
+EEVEE_SAMPLES = 16
+
+
+@dataclass
+class BenchOptions:
+    scenes: list
+    out_dir: str
+    resolution: tuple = DEFAULT_RESOLUTION
+    frames: int = DEFAULT_FRAMES
+    eevee_samples: int = EEVEE_SAMPLES   # every EEVEE render's samples
+    reference_samples: int = REFERENCE_SAMPLES
+    cache_dir: str = DEFAULT_CACHE
+    contenders: list = None
+    stability: bool = True
+    readme: str = None
+
+
+def require_dev_dependencies():
+    missing = []
+    for module in ("flip_evaluator", "matplotlib", "skimage"):
+        try:
+            __import__(module)
+        except ImportError:
+            missing.append(module)
+    if missing:
+        raise SSRError(f"the bench needs the dev dependencies ({', '.join(missing)} missing): "
+                       f"pip install -e '.[dev]'")
+
+
+def run_bench(options, log=print):
+    """Run the whole bench into options.out_dir; returns the bench.json data."""
+    require_dev_dependencies()
+    if options.frames < 1:
+        raise SSRError(f"--frames must be at least 1, got {options.frames}")
+    if options.eevee_samples < 1:
+        raise SSRError(f"--samples must be at least 1, got {options.eevee_samples}")
+    if options.reference_samples < len(REFERENCE_SEEDS):
+        raise SSRError(f"--reference-samples must be at least {len(REFERENCE_SEEDS)}")
+    if options.readme and not os.path.isfile(options.readme):
+        raise SSRError(f"--readme {options.readme}: no such file")
+    scene_paths = [resolve_scene(name) for name in options.scenes]
+    contenders = select_contenders(options.contenders)
+    prepare_output_folder(options.out_dir)
+    ensure_backend()
+    copy_ms = {_size_label(size): copy_pass_ms(size) for size in (options.resolution, COPY_PASS_LARGE)}
+    copy_here = copy_ms[_size_label(options.resolution)]
+    log("copy pass: " + ", ".join(f"{size} {ms:.3f} ms" for size, ms in copy_ms.items()))
+
+    rows, sheet, references = [], {}, {}
+    for scene_path in scene_paths:
+        label = scene_label(scene_path)
+        scene = load_scene(scene_path)
+        reference = render_reference(scene, scene_path, options.resolution, options.reference_samples,
+                                     scene.frame_current, options.cache_dir, log)
+        references[label] = reference.info
+        sheet[label] = {"reference": (reference.image, reference.mask)}
+        rendered = run_contenders(scene, contenders, options)
+        for contender in contenders:
+            final, stages = rendered[contender.name]
+            frame_ms = sum(stages.values())
+            addon_ms = frame_ms - stages.get("render", 0.0)  # everything but the engine's own render
+            scores, error = accuracy(reference.image, final, reference.mask)
+            sheet[label][contender.name] = (final, error)
+            rows.append({"scene": label, "contender": contender.name, "method": contender.method,
+                         "frame_ms": frame_ms, "addon_ms": addon_ms, "frame_x_copy": frame_ms / copy_here, **scores,
+                         "stages_ms": stages, "stages_x_copy": {s: ms / copy_here for s, ms in stages.items()}})
+            log(f"{label} / {contender.name}: {frame_ms:.0f} ms, FLIP reflective {_format(scores['flip_reflective'])}")
+        _warn_if_reference_noisy(label, reference.info, [r for r in rows if r["scene"] == label], log)
+
+    summary = summarise_contenders(contenders, rows, copy_here)
+    report = {
+        "blender": bpy.app.version_string, "gpu": describe_gpu(), "resolution": list(options.resolution),
+        "scenes": [scene_label(p) for p in scene_paths], "frames_per_contender": options.frames,
+        "contender_patterns": options.contenders,
+        "eevee_samples": options.eevee_samples,
+        "timing": "contenders take turns frame by frame; each stage's fastest time over the frames after the "
+                  "first (the least disturbed by other processes); a frame's time is the sum of its stages, "
+                  "render_frame's StageTimer laps; the engine's render is the 'render' stage, the lamp-only "
+                  "render SSR needs in scenes with lamps the 'lamp_split' stage (the add-on's share: addon_ms)",
+        "copy_pass_ms": copy_ms, "copy_pass_repeats": COPY_PASS_REPEATS,
+        "reflective_mask": {"max_roughness": ChainSettings().max_roughness, "min_specular_color": MIN_SPECULAR_COLOR},
+        "reference": {"engine": "cycles", "samples": options.reference_samples, "seeds": list(REFERENCE_SEEDS),
+                      "per_scene": references},
+        "contenders": summary, "results": rows,
+    }
+    if options.stability:
+        with tempfile.TemporaryDirectory(prefix="ssr_stability_") as work_dir:
+            report["stability"] = {
+                "frames": list(STABILITY_FRAMES),
+                "limits": {"fallback_margin_flip": FALLBACK_MARGIN, "seam": SEAM_LIMIT, "flicker": FLICKER_LIMIT,
+                           "energy_tolerance": ENERGY_TOLERANCE},
+                "cases": run_stability(options, work_dir, log),
+            }
+    write_outputs(report, sheet, options.out_dir)
+    if options.readme:
+        update_readme(options.readme, report, options.out_dir)
+    return report
+
+
+def _warn_if_reference_noisy(label, info, rows, log):
+    errors = [row["flip_reflective"] for row in rows if row["flip_reflective"] is not None]
+    noise = info.get("noise_flip_reflective")
+    if errors and noise is not None and noise > min(errors) / 3:
+        log(f"warning: {label}: the reference's own noise (FLIP {noise:.4f} between its halves) is not far below "
+            f"the smallest error measured ({min(errors):.4f}); raise --reference-samples")
+
+
+def options_from_arguments(arguments):
+    return BenchOptions(
+        scenes=arguments.scenes or list(DEFAULT_SCENES), out_dir=arguments.out,
+        resolution=parse_resolution(arguments.resolution) if arguments.resolution else DEFAULT_RESOLUTION,
+        frames=arguments.frames, eevee_samples=arguments.samples, reference_samples=arguments.reference_samples,
+        cache_dir=arguments.cache,
+        contenders=arguments.contenders, stability=not arguments.no_stability, readme=arguments.readme)

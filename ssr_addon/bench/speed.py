@@ -1,0 +1,28 @@
+"""Speed's yardstick: the full-screen copy pass, timed on this GPU in the same run."""
+import statistics
+
+from ..gpu_backend import StageTimer, empty_texture, ensure_backend
+from ..shaders import get_pass
+
+COPY_PASS_REPEATS = 20
+COPY_PASS_LARGE = (1600, 900)
+
+
+def copy_pass_ms(size, repeats=COPY_PASS_REPEATS):
+    """Median milliseconds of the full-screen copy pass (one RGBA32F texelFetch per pixel) at SIZE."""
+    ensure_backend()
+    source, target = empty_texture(size), empty_texture(size)
+    copy = get_pass("copy")
+    samples = []
+    for repeat in range(repeats + 1):
+        timer = StageTimer()
+        timer.lap("idle", target)  # start with the GPU idle
+        copy.draw([target], samplers=(("source_tx", source),))
+        timer.lap("copy", target)
+        if repeat:  # the first draw warms up (allocation, shader compilation)
+            samples.append(timer.milliseconds["copy"])
+    return statistics.median(samples)
+
+
+def _size_label(size):
+    return f"{size[0]}x{size[1]}"
