@@ -98,27 +98,24 @@ def chart_stability(stability, path):
 
     def values(key):
         return [np.nan if cases[c].get(key) is None else cases[c][key] for c in cases]
-    panel = axes[0, 0]
-    panel.bar(positions - 0.2, values("flip_ssr_mean"), 0.4, label="ssr")
-    panel.bar(positions + 0.2, values("flip_fallback_mean"), 0.4, label="probe/world fallback")
-    panel.set_title("mean FLIP on reflective pixels vs Cycles", fontsize=9)
-    panel.legend(fontsize=7)
-    panel = axes[0, 1]
-    panel.bar(positions, values("seam_max"), 0.6)
-    panel.axhline(SEAM_LIMIT, color="tab:red", linestyle="--", linewidth=1, label="test limit")
-    panel.set_title("seam strength (0 smooth fade, 1 one-pixel cut)", fontsize=9)
-    panel.legend(fontsize=7)
-    panel = axes[1, 0]
-    panel.bar(positions - 0.2, values("flicker"), 0.4, label="default")
-    panel.bar(positions + 0.2, values("flicker_temporal_off"), 0.4, label="temporal off")
-    panel.axhline(FLICKER_LIMIT, color="tab:red", linestyle="--", linewidth=1, label="test limit")
-    panel.set_title("flicker, static scenes (relative frame-to-frame change)", fontsize=9)
-    panel.legend(fontsize=7)
-    panel = axes[1, 1]
-    panel.bar(positions - 0.2, values("ghosting_flip_hit"), 0.4, label="reproject hit point")
-    panel.bar(positions + 0.2, values("ghosting_flip_surface"), 0.4, label="reproject surface point")
-    panel.set_title("ghosting: FLIP vs per-frame references, frames 2+", fontsize=9)
-    panel.legend(fontsize=7)
+
+    def bars(panel, title, series, limit=None):
+        """SERIES: (key, label) pairs, drawn side by side per case; LIMIT: the tested limit."""
+        width = 0.8 / len(series)
+        for index, (key, label) in enumerate(series):
+            panel.bar(positions + (index - (len(series) - 1) / 2) * width, values(key), width, label=label)
+        if limit is not None:
+            panel.axhline(limit, color="tab:red", linestyle="--", linewidth=1, label="test limit")
+        panel.set_title(title, fontsize=9)
+        if any(label for _, label in series) or limit is not None:
+            panel.legend(fontsize=7)
+    bars(axes[0, 0], "mean FLIP on reflective pixels vs Cycles",
+         (("flip_ssr_mean", "ssr"), ("flip_fallback_mean", "probe/world fallback")))
+    bars(axes[0, 1], "seam strength (0 smooth fade, 1 one-pixel cut)", (("seam_max", None),), SEAM_LIMIT)
+    bars(axes[1, 0], "flicker, static scenes (relative frame-to-frame change)",
+         (("flicker", "default"), ("flicker_temporal_off", "temporal off")), FLICKER_LIMIT)
+    bars(axes[1, 1], "ghosting: FLIP vs per-frame references, frames 2+",
+         (("ghosting_flip_hit", "reproject hit point"), ("ghosting_flip_surface", "reproject surface point")))
     for panel in axes.ravel():
         panel.set_xticks(positions, names, fontsize=7, rotation=20)
         panel.tick_params(axis="y", labelsize=7)
