@@ -32,8 +32,8 @@ class FrameSequence:
     """Hands out trace iterations frame by frame.
 
     Every frame is rendered like a still: a frame with no history runs
-    `accumulate_frames` iterations, one with history runs one, and then either
-    doubles its iterations until its reflection settles (`noise_threshold`).
+    `accumulate_frames` iterations, one with history runs one; then it doubles
+    its iterations until its reflection settles (`noise_threshold`).
     still=True: every frame is a still (a single-frame render, a comparison
     tile), with no history from other frames. still=False: an animation: the
     history carries from frame to frame unless the range jumps or the camera
