@@ -8,8 +8,8 @@ EEVEE pass render shows them:
 - planar: the scene mirrored in one plane, an EEVEE plane light probe on a
   flat mesh. EEVEE uses plane probes only with screen-trace ray tracing, so
   that is switched on; other glossy surfaces then get EEVEE's own screen trace.
-- none: the world and the scene's own light probes.
-- ssr: the cubemap as well, which SSR falls back to where its rays miss.
+- none and ssr: the scene as it is (its world, light probes and ray tracing
+  setting), exactly what `render --method none/ssr` renders.
 
 Everything goes through TemporaryChanges: the scene is as before on restore.
 """
@@ -36,9 +36,8 @@ def apply_baseline(scene, mode, changes, probe_object=None, mirror_object=None):
         _add_plane_probe(scene, changes, mirror_object or _largest_flat_mesh(scene))
         changes.set(scene.eevee, "use_raytracing", True)
         changes.set(scene.eevee, "ray_tracing_method", "SCREEN")
-        return
-    changes.set(scene.eevee, "use_raytracing", False)
-    if mode in ("ssr", "cubemap"):
+    elif mode == "cubemap":
+        changes.set(scene.eevee, "use_raytracing", False)
         _add_sphere_probe(scene, changes, probe_object)
 
 

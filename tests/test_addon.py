@@ -571,3 +571,15 @@ def test_built_extension_installs_enables_and_disables(tmp_path):
                      "thickness": pytest.approx(0.2), "enabled_after_cli": True, "disabled_cleanly": True}
     assert (tmp_path / "cli_out" / "frame_0001.exr").is_file()
     assert (user_dir / "extensions" / "user_default" / "stochastic_ssr" / "ssr_addon" / "gpu_shaders").is_dir()
+
+
+def test_the_compare_ssr_tile_is_exactly_a_ssr_render(addon):
+    """compare's SSR tile used to capture a cubemap of its own as the fallback (a cream disc around
+    the mirror floor's green box that `render --method ssr` never showed); now it is the same render."""
+    scene = _mirror_floor(64, 36)
+    request = replace(operators.render_request(scene), samples=4)
+    lightprobes = len(bpy.data.lightprobes)
+    tile = operators.render_mode(scene, "SSR", request)[0]["final"]
+    assert len(bpy.data.lightprobes) == lightprobes
+    rendered, _ = render_frame(scene, request)
+    np.testing.assert_allclose(tile, rendered["final"], atol=1e-4)
