@@ -14,7 +14,7 @@ DEFAULT_GROUP = "tracing"  # for schema fields without metadata["group"]
 GROUP_ORDER = ("tracing", "resolve", "temporal", "fading")
 
 COMPARISON_MODES = (
-    ("SSR", "SSR", "This add-on's screen-space reflections, falling back to the cubemap where rays miss"),
+    ("SSR", "SSR", "This add-on's screen-space reflections, falling back to the scene's own where rays miss"),
     ("CUBEMAP", "Cubemap", "One reflection cubemap (an EEVEE sphere probe): static, no self-reflection"),
     ("PLANAR", "Planar", "The scene mirrored in one plane (an EEVEE plane probe): exact on that plane only"),
     ("NONE", "None", "World and existing light probes only"),

@@ -292,7 +292,10 @@ def test_sidebar_offers_modes_debug_view_operators_and_overlay(addon):
     scene = _mirror_floor(*SMALL)
     log = _draw(panels.VIEW3D_PT_ssr, "draw", scene)
     assert ("prop", "comparison_mode", True, True) in log
-    assert {entry[1] for entry in log if entry[0] == "prop"} >= {"debug_view", "show_overlay", "probe_object"}
+    assert {entry[1] for entry in log if entry[0] == "prop"} >= {"debug_view", "show_overlay"}
+    scene.ssr.comparison_mode = "CUBEMAP"  # the cubemap's centre belongs to the cubemap mode alone
+    assert "probe_object" in {entry[1] for entry in _draw(panels.VIEW3D_PT_ssr, "draw", scene) if entry[0] == "prop"}
+    scene.ssr.comparison_mode = "SSR"
     operators_drawn = {entry[1] for entry in log if entry[0] == "operator"}
     # Every operator but the presets, which sit in the Render properties panel.
     assert operators_drawn == {cls.bl_idname for cls in operators.classes} - {"render.ssr_apply_preset"}

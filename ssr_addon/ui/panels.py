@@ -80,7 +80,7 @@ class VIEW3D_PT_ssr(bpy.types.Panel):
         if reason is not None:
             layout.label(text=reason, icon="ERROR")
         layout.row().prop(settings, "comparison_mode", expand=True)
-        if settings.comparison_mode in ("SSR", "CUBEMAP"):
+        if settings.comparison_mode == "CUBEMAP":
             layout.prop(settings, "probe_object")
         elif settings.comparison_mode == "PLANAR":
             layout.prop(settings, "planar_object")
