@@ -15,7 +15,7 @@ from ssr_addon.chain import ChainInputs, ChainState, run_chain
 from ssr_addon.gpu_backend import StageTimer
 from ssr_addon.params import PRESETS, preset
 
-STAGES = ("hiz", "color_pyramid", "trace", "resolve", "spatial", "temporal", "composite")
+STAGES = ("hiz", "color_pyramid", "trace", "resolve", "spatial", "temporal", "convergence", "composite")
 
 
 def main():
