@@ -1,9 +1,13 @@
 """Pass rendering: the roughness AOV follows whatever drives Roughness, and the scene is left untouched."""
+import os
+
 import bpy
 import numpy as np
 import pytest
 
+from conftest import SCENES
 from ssr_addon.passes import lamp_world_for_run, render_passes
+from ssr_addon.scene_io import load_scene
 
 
 def _plane_with_roughness(name, x, wire_roughness):
@@ -179,9 +183,6 @@ def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone():
     the corridor's walls (lit by the emissive stripes across it), where the add-on used to
     switch it off. The lamp-only render still holds lamps alone: ray tracing there would add
     the lamp-lit scene's reflections to the highlights SSR leaves in place."""
-    from ssr_addon.scene_io import load_scene
-    from conftest import SCENES
-    import os
     scene = load_scene(os.path.join(SCENES, "glossy_corridor.py"))
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     lamp.location = (0, 4, 2.5)
