@@ -15,7 +15,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .frame_sequence import FrameSequence
-from .gpu_backend import TexturePool, download, uniform_buffer, upload
+from .gpu_backend import TexturePool, download, lap, uniform_buffer, upload
 from .gpu_params import MAX_PYRAMID_LEVELS
 from .shaders import DFG_SIZE, get_pass
 
@@ -165,11 +165,6 @@ def build_pyramid(source_tx, reduction, pool, role, level_count=None):
     return atlas, rects
 
 
-def _lap(timer, stage, texture=None):
-    if timer:
-        timer.lap(stage, texture)
-
-
 @dataclass
 class FrameContext:
     """What every iteration of one frame shares: its inputs, settings and pyramids."""
@@ -239,10 +234,10 @@ def run_chain(inputs, settings, state, timer=None):
 
     hiz_tx, hiz_rects = build_pyramid(inputs.depth_tx, "hiz_downsample", pool, "hiz") \
         if settings.use_hiz else (inputs.depth_tx, [(0, 0, *size)])
-    _lap(timer, "hiz", hiz_tx)
+    lap(timer, "hiz", hiz_tx)
     color_tx, color_rects = build_pyramid(inputs.radiance_tx, "color_downsample", pool, "color",
                                           None if settings.use_cone_filter else 1)
-    _lap(timer, "color_pyramid", color_tx)
+    lap(timer, "color_pyramid", color_tx)
 
     world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
     frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects, color_tx, color_rects,
@@ -264,13 +259,13 @@ def run_chain(inputs, settings, state, timer=None):
         reflection = download(outputs["reflection_tx"])
         before = state.last_reflection if continues else None
         while not _settled(before, reflection, settings) and (added := sequence.doubling(settings)):
-            _lap(timer, "convergence")
+            lap(timer, "convergence")
             before = reflection
             for _ in range(added):
                 outputs, blocks = iterate()
             iterations += added
             reflection = download(outputs["reflection_tx"])
-        _lap(timer, "convergence")
+        lap(timer, "convergence")
     state.last_reflection = reflection
 
     final_tx = pool.get("final", size)
@@ -282,7 +277,7 @@ def run_chain(inputs, settings, state, timer=None):
                               ("dfg_tx", state.dfg_tx), ("depth_tx", inputs.depth_tx),
                               ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx)),
         uniform_blocks=blocks)
-    _lap(timer, "composite", final_tx)
+    lap(timer, "composite", final_tx)
     state.previous_radiance_tx = inputs.radiance_tx
     return ChainOutputs(**outputs, final_tx=final_tx, iterations=iterations)
 
@@ -320,7 +315,7 @@ def _run_iteration(frame, first):
         samplers=(("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
                   ("roughness_tx", inputs.roughness_tx), ("hiz_tx", frame.hiz_tx)),
         uniform_blocks=blocks)
-    _lap(timer, "trace", ray_hit_tx)
+    lap(timer, "trace", ray_hit_tx)
 
     resolved_tx = pool.get("reflection", size)
     reflection_hit_tx = pool.get("reflection_hit", size)
@@ -330,7 +325,7 @@ def _run_iteration(frame, first):
                   ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
                   ("color_tx", frame.color_tx)),
         uniform_blocks=blocks)
-    _lap(timer, "resolve", resolved_tx)
+    lap(timer, "resolve", resolved_tx)
 
     spatial_tx = resolved_tx
     if settings.use_spatial_filter:
@@ -341,7 +336,7 @@ def _run_iteration(frame, first):
                       ("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
                       ("roughness_tx", inputs.roughness_tx)),
             uniform_blocks=blocks)
-        _lap(timer, "spatial", spatial_tx)
+        lap(timer, "spatial", spatial_tx)
 
     reflection_tx, history_count_tx = spatial_tx, None
     if settings.use_temporal:
@@ -357,7 +352,7 @@ def _run_iteration(frame, first):
                       ("radiance_tx", inputs.radiance_tx), ("previous_radiance_tx", previous_radiance_tx),
                       ("history_tx", history_tx), ("history_count_tx", history_count_in_tx)),
             uniform_blocks=blocks)
-        _lap(timer, "temporal", filtered_tx)
+        lap(timer, "temporal", filtered_tx)
         reflection_tx, history_count_tx = filtered_tx, count_tx
     state.previous_world_to_clip = world_to_clip
     return {"ray_hit_tx": ray_hit_tx, "ray_dir_tx": ray_dir_tx, "ray_stats_tx": ray_stats_tx,

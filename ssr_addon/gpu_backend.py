@@ -179,7 +179,8 @@ class StageTimer:
         self.milliseconds[stage] = self.milliseconds.get(stage, 0.0) + (now - self._start) * 1000.0
         self._start = now
 
-    def split(self, stage, part, milliseconds):
-        """Count MILLISECONDS of STAGE's time (already closed) as PART's instead."""
-        self.milliseconds[stage] -= milliseconds
-        self.milliseconds[part] = self.milliseconds.get(part, 0.0) + milliseconds
+
+def lap(timer, stage, texture=None):
+    """Close STAGE on TIMER (a StageTimer), where the caller was given one."""
+    if timer:
+        timer.lap(stage, texture)

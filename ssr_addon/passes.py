@@ -7,7 +7,6 @@ image order (row 0 is the top row).
 import contextlib
 import os
 import tempfile
-import time
 from dataclasses import dataclass
 
 import bpy
@@ -15,6 +14,7 @@ import numpy as np
 import OpenImageIO as oiio
 
 from .errors import SSRError
+from .gpu_backend import lap
 from .overrides import TemporaryChanges
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .scene_io import camera_matrices, require_camera, require_square_pixels
@@ -49,7 +49,6 @@ class FramePasses:
     engine: str
     samples: int                 # samples per pixel the engine rendered with
     material_warnings: tuple = ()  # materials whose roughness/F0 the AOVs could not read, and what was assumed
-    split_ms: float = 0.0        # of the render time, the second render that split specular_direct off
 
     @property
     def size(self):
@@ -82,7 +81,7 @@ def render_samples(scene, engine, samples=None):
 
 
 def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_raytracing=None,
-                  split_lamp_specular=True):
+                  split_lamp_specular=True, timer=None):
     """Render SCENE's current frame with ENGINE and return its FramePasses.
 
     SAMPLES and RESOLUTION default to the scene's own (render_samples, render_size).
@@ -93,6 +92,8 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     `split_lamp_specular=False` skips the render that splits lamp highlights off
     (EEVEE: lamps only; Cycles: lamps hidden) when nothing will replace the
     indirect specular (then specular_direct is zero).
+    TIMER (a StageTimer) gets the engine's render as "render" and the second
+    render, the add-on's own cost, as "lamp_split".
     The scene, its view layer and its materials are exactly as before on return.
     """
     camera = require_camera(scene)
@@ -107,15 +108,14 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
         material_warnings = tuple(add_material_aovs(scene, view_layer, changes))
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
-        split_start = time.perf_counter()
-        split = False
+        lap(timer, "render")
         width, height = scene.render.resolution_x, scene.render.resolution_y
         if engine == "eevee":
             # EEVEE's "Specular Light" (glossy direct) holds lamp highlights and
             # probe/world reflections together; a lamp-only render splits them.
             specular_all = _layer(layers, "Glossy Direct")
-            split = split_lamp_specular and _has_lamps(scene)
-            specular_direct = _lamp_specular(scene, folder) if split else np.zeros_like(specular_all)
+            specular_direct = _lamp_specular(scene, folder, timer) if split_lamp_specular and _has_lamps(scene) \
+                else np.zeros_like(specular_all)
             specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
@@ -125,11 +125,9 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             glossy_direct = _layer(layers, "Glossy Direct")
             glossy_indirect = _layer(layers, "Glossy Indirect")
             lamps = _offscreen_lamps(scene) if split_lamp_specular else []
-            split = bool(lamps)
-            emitter_specular = _emitter_specular(scene, folder, lamps) if lamps else glossy_direct
+            emitter_specular = _emitter_specular(scene, folder, lamps, timer) if lamps else glossy_direct
             specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
             specular_indirect = glossy_indirect + emitter_specular
-        split_ms = (time.perf_counter() - split_start) * 1000.0 if split else 0.0
         view, projection = camera_matrices(scene, width, height)
     aov = _layer(layers, ROUGHNESS_AOV)
     passes_shape = aov.shape[:2]
@@ -154,7 +152,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         specular_direct=specular_direct,
         view_matrix=view, projection_matrix=projection,
         clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine, samples=samples,
-        material_warnings=material_warnings, split_ms=split_ms)
+        material_warnings=material_warnings)
 
 
 def _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing=None):
@@ -260,7 +258,7 @@ def _black_world(changes):
     return world
 
 
-def _lamp_specular(scene, folder):
+def _lamp_specular(scene, folder, timer):
     """EEVEE's specular light with the world black, light probes hidden and ray tracing off
     (it would reflect the lamp-lit scene): lamps alone."""
     with TemporaryChanges() as lamp_only:
@@ -270,6 +268,7 @@ def _lamp_specular(scene, folder):
             if obj.type == "LIGHT_PROBE":
                 lamp_only.set(obj, "hide_render", True)
         layers = _render_to_exr(scene, os.path.join(folder, "lamp_specular.exr"), lamp_only)
+    lap(timer, "lamp_split")
     return _layer(layers, "Glossy Direct")
 
 
@@ -279,7 +278,7 @@ def _offscreen_lamps(scene):
             if obj.type == "LIGHT" and not obj.hide_render and not obj.visible_camera]
 
 
-def _emitter_specular(scene, folder, lamps):
+def _emitter_specular(scene, folder, lamps, timer):
     """Cycles' Glossy Direct with LAMPS hidden: the reflected world and emissive surfaces
     (and camera-visible lamps), what SSR can see on screen. Glossy Direct is written at the
     first bounce, so no further bounce is traced (the pass is the same, sample for sample)."""
@@ -288,4 +287,5 @@ def _emitter_specular(scene, folder, lamps):
             emitters_only.set(lamp, "hide_render", True)
         emitters_only.set(scene.cycles, "max_bounces", 0)
         layers = _render_to_exr(scene, os.path.join(folder, "emitter_specular.exr"), emitters_only)
+    lap(timer, "lamp_split")
     return _layer(layers, "Glossy Direct")

@@ -23,8 +23,9 @@ from .progress import FrameProgress
 from .run_report import REPORT_NAME, claim_folder, fingerprint, frame_paths, scene_identity
 from .scene_io import require_camera, require_square_pixels
 
-# ssr: this project; none: probe/world reflections only; cycles: the path-traced
-# reference; eevee-rt / eevee-rt-high: EEVEE's own screen-space ray tracing.
+# ssr: this project; none: the scene's own reflections (probes and the world, and EEVEE's
+# screen tracing where the scene has ray tracing on); cycles: the path-traced reference;
+# eevee-rt / eevee-rt-high: EEVEE's own screen-space ray tracing.
 METHODS = ("ssr", "none", "cycles", "eevee-rt", "eevee-rt-high")
 EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}
 # Frames re-rendered (not written) before the first missing frame of a resumed run, so
@@ -102,10 +103,8 @@ def render_frame(scene, request, state=None):
     timer = StageTimer()
     use_ssr = request.method == "ssr" and request.settings.use_ssr
     passes = render_passes(scene, request.engine, request.samples, request.resolution,
-                           EEVEE_RAYTRACING_METHODS.get(request.method), split_lamp_specular=use_ssr)
-    timer.lap("render")
-    if passes.split_ms:  # the add-on's, not the engine's: it asked for the second render
-        timer.split("render", "lamp_split", passes.split_ms)
+                           EEVEE_RAYTRACING_METHODS.get(request.method), split_lamp_specular=use_ssr, timer=timer)
+    timer.lap("render")  # reading the passes back
     height, width = passes.depth.shape
     images = {"passes": passes, "final": passes.combined, "stats": {}}
     if not use_ssr:
@@ -338,5 +337,5 @@ def _summarise(report, log):
         addon_ms = sum(entry["addon_ms"] for entry in timed) / len(timed)
         report["mean_ms_per_frame"] = {"render": round(render_ms, 1), "addon": round(addon_ms, 1),
                                        "addon_over_render": round(addon_ms / render_ms, 4)}
-        log(f"per frame: render {render_ms:.0f} ms, add-on (read-back, chain, composite, writing) "
+        log(f"per frame: render {render_ms:.0f} ms, add-on (lamp-only render, read-back, chain, composite, writing) "
             f"{addon_ms:.0f} ms = {addon_ms / render_ms:.3f} x the render")

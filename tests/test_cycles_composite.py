@@ -27,7 +27,7 @@ RAW_SAMPLES = 256
 # Composites fed other light as "what SSR replaces" (the same CLI with passes.py patched):
 # before the fix, Glossy Indirect alone; the opposite mistake, all of Glossy Direct too.
 VARIANTS = {
-    "glossy_indirect_only": "passes._emitter_specular = lambda scene, folder, lamps: 0.0",
+    "glossy_indirect_only": "passes._emitter_specular = lambda scene, folder, lamps, timer: 0.0",
     "all_glossy": "passes._offscreen_lamps = lambda scene: []",
 }
 WITHIN = 0.10   # the goal: the reflection SSR stands in for is right to a tenth of it
