@@ -84,6 +84,18 @@ class ChainSettings:
         0.08, "Fade hits within this fraction of the screen from its border", 0.0, 0.5, group="fading")
     camera_facing_fade: float = _setting(
         0.5, "Fade rays that point back towards the camera (0: never fade)", 0.0, 1.0, group="fading")
+    # Lamps: SSR replaces reflected light, never a highlight of a lamp it cannot see on screen,
+    # so the engine's specular light is split into the two.
+    lamp_split: str = _setting(
+        "auto", "How lamp highlights are told apart from reflected light, which SSR replaces",
+        items=(("auto", "Auto", "Unshadowed with EEVEE, Render with Cycles"),
+               ("render", "Render",
+                "A second render with lamps only: exact, at the cost of a full render"),
+               ("unshadowed", "Unshadowed",
+                "EEVEE only: a lamps-only render without shadows, shadowed by the Shadow pass: "
+                "a fraction of a render's cost, exact for one lamp"),
+               ("off", "Off", "No split: SSR replaces lamp highlights too (scenes without lamps)")),
+        group="lamps")
 
     def with_overrides(self, overrides):
         """Return a copy with `key=value` strings (from --set) parsed by each field's type.

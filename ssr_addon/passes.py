@@ -80,8 +80,19 @@ def render_samples(scene, engine, samples=None):
     return scene.eevee.taa_render_samples if engine == "eevee" else scene.cycles.samples
 
 
+def lamp_split_method(engine, lamp_split):
+    """The split LAMP_SPLIT (a ChainSettings.lamp_split) stands for with ENGINE: auto is
+    unshadowed with EEVEE (the lamp split's error is measured in benchmarks/lamp_split.py)
+    and render with Cycles, which has no Shadow pass."""
+    if lamp_split == "auto":
+        return "unshadowed" if engine == "eevee" else "render"
+    if lamp_split == "unshadowed" and engine != "eevee":
+        raise SSRError("lamp_split=unshadowed needs EEVEE's Shadow pass: with Cycles use render, auto or off")
+    return lamp_split
+
+
 def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_raytracing=None,
-                  split_lamp_specular=True, timer=None):
+                  lamp_split="auto", timer=None):
     """Render SCENE's current frame with ENGINE and return its FramePasses.
 
     SAMPLES and RESOLUTION default to the scene's own (render_samples, render_size).
@@ -89,9 +100,11 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     reflections; on: its screen-space diffuse light and reflections too, which
     SSR replaces where its rays hit), or with ray tracing on as
     `eevee_raytracing` names a preset of EEVEE_RAYTRACING.
-    `split_lamp_specular=False` skips the render that splits lamp highlights off
-    (EEVEE: lamps only; Cycles: lamps hidden) when nothing will replace the
-    indirect specular (then specular_direct is zero).
+    LAMP_SPLIT (ChainSettings.lamp_split, through lamp_split_method) is how lamp
+    highlights are split off the specular light, by a second render:
+    render: lamps only (EEVEE) or lamps hidden (Cycles), exact;
+    unshadowed: EEVEE's lamps only without shadows, times the Shadow pass;
+    off: no split (specular_direct is zero), as when nothing replaces the indirect specular.
     TIMER (a StageTimer) gets the engine's render as "render" and the second
     render, the add-on's own cost, as "lamp_split".
     The scene, its view layer and its materials are exactly as before on return.
@@ -101,11 +114,14 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
     require_square_pixels(scene)
     samples = render_samples(scene, engine, samples)
+    lamp_split = lamp_split_method(engine, lamp_split)
     view_layer = next((layer for layer in scene.view_layers if layer.use), None)
     if view_layer is None:
         raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
+        if lamp_split == "unshadowed":
+            changes.set(view_layer, "use_pass_shadow", True)
         material_warnings = tuple(add_material_aovs(scene, view_layer, changes))
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
         lap(timer, "render")
@@ -114,8 +130,15 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             # EEVEE's "Specular Light" (glossy direct) holds lamp highlights and
             # probe/world reflections together; a lamp-only render splits them.
             specular_all = _layer(layers, "Glossy Direct")
-            specular_direct = _lamp_specular(scene, folder, timer) if split_lamp_specular and _has_lamps(scene) \
-                else np.zeros_like(specular_all)
+            if lamp_split == "off" or not _has_lamps(scene):
+                specular_direct = np.zeros_like(specular_all)
+            elif lamp_split == "unshadowed":
+                # The Shadow pass is each sample's shadowed share of all lamp light (every lamp,
+                # diffuse and specular together): exact for one lamp, a lamp-weighted mean for more.
+                specular_direct = _lamp_specular(scene, folder, timer, shadows=False) \
+                    * _layer(layers, "Shadow")[..., :1]
+            else:
+                specular_direct = _lamp_specular(scene, folder, timer)
             specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
@@ -124,7 +147,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             # render with those lamps hidden gives the rest of Glossy Direct.
             glossy_direct = _layer(layers, "Glossy Direct")
             glossy_indirect = _layer(layers, "Glossy Indirect")
-            lamps = _offscreen_lamps(scene) if split_lamp_specular else []
+            lamps = _offscreen_lamps(scene) if lamp_split == "render" else []
             emitter_specular = _emitter_specular(scene, folder, lamps, timer) if lamps else glossy_direct
             specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
             specular_indirect = glossy_indirect + emitter_specular
@@ -258,12 +281,15 @@ def _black_world(changes):
     return world
 
 
-def _lamp_specular(scene, folder, timer):
+def _lamp_specular(scene, folder, timer, shadows=True):
     """EEVEE's specular light with the world black, light probes hidden and ray tracing off
-    (it would reflect the lamp-lit scene): lamps alone."""
+    (it would reflect the lamp-lit scene): lamps alone. Without SHADOWS it costs a fraction
+    of a render (at 160x90 on llvmpipe 2 s against 12 s: shadow maps are updated every sample)."""
     with TemporaryChanges() as lamp_only:
         lamp_only.set(scene, "world", _black_world(lamp_only))
         lamp_only.set(scene.eevee, "use_raytracing", False)
+        if not shadows:
+            lamp_only.set(scene.eevee, "use_shadows", False)
         for obj in scene.objects:
             if obj.type == "LIGHT_PROBE":
                 lamp_only.set(obj, "hide_render", True)

@@ -18,7 +18,7 @@ from .gpu_backend import StageTimer, describe_gpu, download, ensure_backend
 from .outputs import (prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr,
                       written_together)
 from .params import ChainSettings
-from .passes import ENGINES, lamp_world_for_run, render_passes, render_samples, render_size
+from .passes import ENGINES, lamp_split_method, lamp_world_for_run, render_passes, render_samples, render_size
 from .progress import FrameProgress
 from .run_report import REPORT_NAME, claim_folder, fingerprint, frame_paths, scene_identity
 from .scene_io import require_camera, require_square_pixels
@@ -60,6 +60,7 @@ class RenderRequest:
             self.engine = "eevee"
         if self.samples is not None and self.samples < 1:
             raise SSRError(f"--samples must be at least 1, got {self.samples}")
+        lamp_split_method(self.engine, self.settings.lamp_split)  # one line now, not at the first frame
         if self.on_error not in ("stop", "skip"):
             raise SSRError(f"--on-error {self.on_error!r}: expected stop or skip")
 
@@ -103,7 +104,8 @@ def render_frame(scene, request, state=None):
     timer = StageTimer()
     use_ssr = request.method == "ssr" and request.settings.use_ssr
     passes = render_passes(scene, request.engine, request.samples, request.resolution,
-                           EEVEE_RAYTRACING_METHODS.get(request.method), split_lamp_specular=use_ssr, timer=timer)
+                           EEVEE_RAYTRACING_METHODS.get(request.method),
+                           lamp_split=request.settings.lamp_split if use_ssr else "off", timer=timer)
     timer.lap("render")  # reading the passes back
     height, width = passes.depth.shape
     images = {"passes": passes, "final": passes.combined, "stats": {}}

@@ -11,7 +11,7 @@ from .params import SETTINGS_SCHEMA, ChainSettings
 
 ENABLE_FIELD = "use_ssr"  # drawn in the panel header, not in a group
 DEFAULT_GROUP = "tracing"  # for schema fields without metadata["group"]
-GROUP_ORDER = ("tracing", "resolve", "temporal", "fading")
+GROUP_ORDER = ("tracing", "resolve", "temporal", "fading", "lamps")
 
 COMPARISON_MODES = (
     ("SSR", "SSR", "This add-on's screen-space reflections, falling back to the scene's own where rays miss"),

@@ -45,6 +45,7 @@ def error_lines(result):
     ("unknown setting", ["--set", "colour=1"], "colour"),
     ("not a number", ["--set", "thickness=nan"], "finite"),
     ("infinite setting", ["--set", "max_distance=inf"], "finite"),
+    ("split without a shadow pass", ["--engine", "cycles", "--set", "lamp_split=unshadowed"], "Shadow pass"),
 ])
 def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
     scene = {"missing file": tmp_path / "absent.blend",

@@ -201,3 +201,46 @@ def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone():
     assert diffuse_level(traced) >= 1.1 * diffuse_level(as_authored)
     assert as_authored.specular_direct.max() > 0, "the lamp must light the floor"
     np.testing.assert_allclose(traced.specular_direct, as_authored.specular_direct, atol=1e-4, rtol=0.02)
+
+
+def _sun_behind_a_wall():
+    """One low sun facing the camera over a glossy metal floor; a wall's shadow covers half
+    of the sun's highlight on the floor."""
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 64, 36
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    floor_material = bpy.data.materials.new("Floor")
+    bsdf = floor_material.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.3
+    bpy.context.active_object.data.materials.append(floor_material)
+    bpy.ops.mesh.primitive_cube_add(location=(-0.6, 3.5, 0.5), scale=(0.6, 0.1, 0.5))
+    wall = bpy.context.active_object
+    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
+    sun.rotation_euler = (np.radians(-70), 0, 0)  # towards the sun: (0, 0.94, 0.34), the camera's mirror direction
+    scene.collection.objects.link(sun)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0, -4, 2)
+    camera.rotation_euler = (np.radians(70), 0, 0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    return scene, wall
+
+
+def test_the_unshadowed_lamp_split_matches_the_exact_split_for_one_lamp():
+    """lamp_split=unshadowed renders the lamps without shadows (a fraction of a render's cost)
+    and shadows them with the main render's Shadow pass: for one lamp that is the exact split's
+    lamp light, within 2 % on the floor, though the wall's shadow takes much of it away."""
+    scene, wall = _sun_behind_a_wall()
+    exact = render_passes(scene, "eevee", samples=4, lamp_split="render")
+    unshadowed = render_passes(scene, "eevee", samples=4, lamp_split="unshadowed")
+    wall.hide_render = True
+    unblocked = render_passes(scene, "eevee", samples=4, lamp_split="render")
+    floor = (np.abs(exact.roughness - 0.3) < 0.01) & (np.abs(unblocked.roughness - 0.3) < 0.01)
+    lamp_light = exact.specular_direct[floor].sum()
+    shadowed_share = 1 - lamp_light / unblocked.specular_direct[floor].sum()
+    error = np.abs(unshadowed.specular_direct - exact.specular_direct)[floor].sum() / lamp_light
+    print(f"the wall's shadow takes {shadowed_share:.1%} of the lamp light; unshadowed split error {error:.2%}")
+    assert shadowed_share > 0.2, "the test needs a shadow across the highlight"
+    assert error <= 0.02

@@ -1,0 +1,80 @@
+"""What lamp_split=unshadowed costs and how far it is from the exact split (lamp_split=render).
+
+    .venv/bin/python benchmarks/lamp_split.py [--scenes NAME ...] [--resolution WxH] [--readme README.md]
+
+For each scene one still is rendered twice through the whole chain, once with each split, from the
+same samples and rays. Errors are relative mean absolute differences on the reflective pixels (the
+bench's mask): of the lamp highlights split off (Specular Direct) and of the final image. Times are
+the split's own render, the fastest of two frames.
+"""
+import argparse
+import os
+import sys
+from dataclasses import replace
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+from ssr_addon.bench.metrics import relative_mae, reflective_mask  # noqa: E402
+from ssr_addon.bench.scenes import resolve_scene, scene_label  # noqa: E402
+from ssr_addon.outputs import rewrite_readme_block  # noqa: E402
+from ssr_addon.params import ChainSettings  # noqa: E402
+from ssr_addon.passes import lamp_world_for_run  # noqa: E402
+from ssr_addon.render_job import RenderRequest, parse_resolution, render_frame  # noqa: E402
+from ssr_addon.scene_io import load_scene  # noqa: E402
+
+SCENES = ("mirror_floor", "rough_spheres", "curved_mirror", "rolling_ball", "wet_street", "emissive_panel",
+          "crossed_shadows")
+SPLITS = ("render", "unshadowed")
+GOAL = 0.02  # the Cost issue's bound on the split's error, relative, on reflective pixels
+
+
+def measure(scene_name, resolution):
+    scene = load_scene(resolve_scene(scene_name))
+    results = {}
+    with lamp_world_for_run():
+        for split in SPLITS:
+            request = RenderRequest(out_dir="", resolution=resolution, samples=16,
+                                    settings=replace(ChainSettings(), lamp_split=split))
+            times = []
+            for _ in range(2):
+                images, timer = render_frame(scene, request)
+                times.append(timer.milliseconds.get("lamp_split", 0.0))
+            results[split] = (images, min(times))
+    exact, _ = results["render"]
+    passes = exact["passes"]
+    mask = reflective_mask(passes.roughness, passes.specular_color)
+    approximate, _ = results["unshadowed"]
+    return {
+        "scene": scene_label(resolve_scene(scene_name)),
+        "render_ms": results["render"][1], "unshadowed_ms": results["unshadowed"][1],
+        "lamp_error": relative_mae(passes.specular_direct, approximate["passes"].specular_direct, mask),
+        "final_error": relative_mae(exact["final"][..., :3], approximate["final"][..., :3], mask),
+    }
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES))
+    parser.add_argument("--resolution", type=parse_resolution, default=(160, 90))
+    parser.add_argument("--readme", help="rewrite the lamp-split block of this README")
+    arguments = parser.parse_args()
+    rows = [measure(name, arguments.resolution) for name in arguments.scenes]
+    width, height = arguments.resolution
+    lines = [f"Latest run: `.venv/bin/python benchmarks/lamp_split.py --resolution {width}x{height}"
+             f"{' --readme README.md' if arguments.readme else ''}` (scenes: {', '.join(arguments.scenes)}); "
+             f"EEVEE at 16 samples. Error: relative mean absolute difference from `lamp_split=render` on the "
+             f"reflective pixels (goal: at most {GOAL:.0%}).", "",
+             "| scene | render split ms | unshadowed split ms | lamp highlights error | final image error |",
+             "|---|---|---|---|---|"]
+    for row in rows:
+        lamp = "-" if row["lamp_error"] is None else f"{row['lamp_error']:.2%}"
+        final = "-" if row["final_error"] is None else f"{row['final_error']:.3%}"
+        lines.append(f"| {row['scene']} | {row['render_ms']:.0f} | {row['unshadowed_ms']:.0f} | {lamp} | {final} |")
+    text = "\n".join(lines)
+    print(text)
+    if arguments.readme:
+        rewrite_readme_block(arguments.readme, "lamps", text, "Lamp highlights")
+
+
+if __name__ == "__main__":
+    main()
