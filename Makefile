@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 OUT ?= out/demo
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench bench-stages crops bench-chain bench-memory dist validate clean
+.PHONY: demo test bench bench-stages crops bench-chain bench-memory bench-lamps dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -28,7 +28,7 @@ BENCH_SCENES := mirror_floor glossy_corridor rough_spheres curved_mirror rolling
 # engine alone, EEVEE's ray tracing and our presets (about an hour on llvmpipe).
 bench: $(STAMP)
 	$(PY) -m ssr_addon bench --scenes $(BENCH_SCENES) --resolution 160x90 --out docs/bench --readme README.md \
-		--contenders none 'eevee-rt*' 'ssr draft' 'ssr balanced' 'ssr high'
+		--contenders none 'eevee-rt*' 'ssr draft' 'ssr balanced' 'ssr balanced lamp_split=render' 'ssr high'
 
 # What each stage buys: the balanced preset with each stage switched off in turn.
 bench-stages: $(STAMP)
@@ -44,6 +44,9 @@ bench-chain: $(STAMP)
 
 bench-memory: $(STAMP)
 	$(PY) benchmarks/batch_memory.py
+
+bench-lamps: $(STAMP)
+	$(PY) benchmarks/lamp_split.py --readme README.md
 
 validate: $(STAMP)
 	$(PY) $(BLENDER_EXT) validate .

@@ -28,6 +28,7 @@ def all_contenders():
                   Contender("eevee-rt-high", "eevee-rt-high")]
     for name, overrides in PRESETS.items():
         contenders.append(Contender(f"ssr {name}", "ssr", replace(ChainSettings(), **overrides)))
+    contenders.append(Contender("ssr balanced lamp_split=render", "ssr", replace(ChainSettings(), lamp_split="render")))
     for toggle in STAGE_TOGGLES:
         contenders.append(Contender(f"ssr {toggle}=off", "ssr", replace(ChainSettings(), **{toggle: False})))
     return contenders
