@@ -103,14 +103,17 @@ class ChainState:
     def begin_frame(self, frame, camera=None):
         """Start FRAME (seen through CAMERA); the history carries over unless the sequence breaks."""
         if not self.sequence.start_frame(frame, camera):
-            self.previous_world_to_clip = None
-            self.previous_radiance_tx = None
+            self._forget_last_frame()
 
     def reset_history(self):
         """Forget the past (a failed frame): the next frame starts afresh."""
         self.sequence.forget()
+        self._forget_last_frame()
+
+    def _forget_last_frame(self):
         self.previous_world_to_clip = None
         self.previous_radiance_tx = None
+        self.last_reflection = None
 
 
 @dataclass
