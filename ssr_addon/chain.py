@@ -221,6 +221,84 @@ def _level_rects(rects):
     return packed
 
 
+class FrameRun:
+    """One frame of the chain, iterated on demand: the pyramids are built once, then each
+    `iterate` adds trace iterations to the frame's running mean and `composite` draws
+    the image they give so far. run_chain renders a frame with it; the live viewport
+    adds an iteration or two per timer tick, so its picture refines while the view holds.
+    The caller starts the frame first (state.begin_frame).
+    """
+
+    def __init__(self, inputs, settings, state, timer=None):
+        size = inputs.size
+        scale = 2 if settings.half_resolution else 1
+        trace_size = (math.ceil(size[0] / scale), math.ceil(size[1] / scale))
+        pool = state.pool
+        hiz_tx, hiz_rects = build_pyramid(inputs.depth_tx, "hiz_downsample", pool, "hiz") \
+            if settings.use_hiz else (inputs.depth_tx, [(0, 0, *size)])
+        lap(timer, "hiz", hiz_tx)
+        color_tx, color_rects = build_pyramid(inputs.radiance_tx, "color_downsample", pool, "color",
+                                              None if settings.use_cone_filter else 1)
+        lap(timer, "color_pyramid", color_tx)
+        world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
+        self.frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
+                                  color_tx, color_rects, world_to_clip)
+        self.continues = state.sequence.has_history  # history from the previous frame
+        self.iterations = 0
+        self.outputs = self.blocks = None
+        self.checked_reflection = None  # the reflection at the last convergence check
+
+    def iterate(self, count=1):
+        for _ in range(count):
+            self.outputs, self.blocks = _run_iteration(self.frame, first=self.iterations == 0)
+            self.iterations += 1
+
+    def next_batch(self):
+        """Iterations to add before the next convergence check, 0 once the frame is done.
+
+        First the sequence's first iterations (FrameSequence.iteration_count). Then,
+        until the running mean moves less than noise_threshold between two checks,
+        double the iterations (FrameSequence.doubling): the change from n to 2n
+        iterations is about 2n's own error. A frame with history first compares with
+        the last frame's reflection: in a still shot it has settled already. The
+        downloads and comparisons are the "convergence" stage.
+        """
+        frame = self.frame
+        settings, state, sequence = frame.settings, frame.state, frame.state.sequence
+        if self.iterations == 0:
+            return sequence.iteration_count(settings)
+        if not sequence.doubling(settings):
+            return 0
+        before = self.checked_reflection
+        if before is None and self.continues:
+            before = state.last_reflection
+        self.checked_reflection = self.reflection()
+        done = settled(before, self.checked_reflection, settings)
+        lap(frame.timer, "convergence")
+        return 0 if done else sequence.doubling(settings)
+
+    def reflection(self):
+        """The running mean's reflection as an array (premultiplied radiance, confidence)."""
+        return download(self.outputs["reflection_tx"])
+
+    def composite(self):
+        """Composite the iterations so far; returns ChainOutputs."""
+        frame = self.frame
+        inputs, state = frame.inputs, frame.state
+        final_tx = state.pool.get("final", frame.size)
+        get_pass("composite").draw(
+            [final_tx], samplers=(("combined_tx", inputs.combined_tx),
+                                  ("specular_color_tx", inputs.specular_color_tx),
+                                  ("specular_indirect_tx", inputs.specular_indirect_tx),
+                                  ("reflection_tx", self.outputs["reflection_tx"]), ("f0_tx", inputs.f0_tx),
+                                  ("dfg_tx", state.dfg_tx), ("depth_tx", inputs.depth_tx),
+                                  ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx)),
+            uniform_blocks=self.blocks)
+        lap(frame.timer, "composite", final_tx)
+        state.previous_radiance_tx = inputs.radiance_tx
+        return ChainOutputs(**self.outputs, final_tx=final_tx, iterations=self.iterations)
+
+
 def run_chain(inputs, settings, state, timer=None):
     """Run the chain on one frame; returns ChainOutputs and updates STATE's history.
 
@@ -228,64 +306,16 @@ def run_chain(inputs, settings, state, timer=None):
     still, or an animation's first frame after a cut) the frame runs the
     sequence's first iterations (FrameSequence.iteration_count) and the
     temporal filter averages them; with history, one iteration is blended in.
-    Either then doubles until it settles (FrameSequence.doubling).
+    Either then doubles until it settles (FrameRun.next_batch).
     """
-    size = inputs.size
-    scale = 2 if settings.half_resolution else 1
-    trace_size = (math.ceil(size[0] / scale), math.ceil(size[1] / scale))
-    pool = state.pool
-
-    hiz_tx, hiz_rects = build_pyramid(inputs.depth_tx, "hiz_downsample", pool, "hiz") \
-        if settings.use_hiz else (inputs.depth_tx, [(0, 0, *size)])
-    lap(timer, "hiz", hiz_tx)
-    color_tx, color_rects = build_pyramid(inputs.radiance_tx, "color_downsample", pool, "color",
-                                          None if settings.use_cone_filter else 1)
-    lap(timer, "color_pyramid", color_tx)
-
-    world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
-    frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects, color_tx, color_rects,
-                         world_to_clip)
-    sequence = state.sequence
-
-    def iterate(first=False):
-        return _run_iteration(frame, first)
-    continues = sequence.has_history
-    iterations = sequence.iteration_count(settings)
-    for iteration_in_frame in range(iterations):
-        outputs, blocks = iterate(first=iteration_in_frame == 0)
-    # Until the running mean moves less than noise_threshold, double the iterations: the change
-    # from n to 2n iterations is about 2n's own error. A frame with history first compares with
-    # the last frame's reflection: in a still shot it has settled already.
-    # The downloads and comparisons are the "convergence" stage.
-    reflection = None
-    if sequence.doubling(settings):
-        reflection = download(outputs["reflection_tx"])
-        before = state.last_reflection if continues else None
-        while not _settled(before, reflection, settings) and (added := sequence.doubling(settings)):
-            lap(timer, "convergence")
-            before = reflection
-            for _ in range(added):
-                outputs, blocks = iterate()
-            iterations += added
-            reflection = download(outputs["reflection_tx"])
-        lap(timer, "convergence")
-    state.last_reflection = reflection
-
-    final_tx = pool.get("final", size)
-    get_pass("composite").draw(
-        [final_tx], samplers=(("combined_tx", inputs.combined_tx),
-                              ("specular_color_tx", inputs.specular_color_tx),
-                              ("specular_indirect_tx", inputs.specular_indirect_tx),
-                              ("reflection_tx", outputs["reflection_tx"]), ("f0_tx", inputs.f0_tx),
-                              ("dfg_tx", state.dfg_tx), ("depth_tx", inputs.depth_tx),
-                              ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx)),
-        uniform_blocks=blocks)
-    lap(timer, "composite", final_tx)
-    state.previous_radiance_tx = inputs.radiance_tx
-    return ChainOutputs(**outputs, final_tx=final_tx, iterations=iterations)
+    run = FrameRun(inputs, settings, state, timer)
+    while added := run.next_batch():
+        run.iterate(added)
+    state.last_reflection = run.checked_reflection
+    return run.composite()
 
 
-def _settled(before, after, settings):
+def settled(before, after, settings):
     """Whether AFTER moved less than noise_threshold from BEFORE (None, or another size: unknown)."""
     return (before is not None and before.shape == after.shape
             and relative_change(before, after) <= settings.noise_threshold)

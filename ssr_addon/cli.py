@@ -1,4 +1,5 @@
-"""Command line: `python -m ssr_addon render SCENE --out DIR ...`, `... compare SCENE --out DIR` and `... bench --out DIR`.
+"""Command line: `python -m ssr_addon render SCENE --out DIR ...`, `... compare SCENE --out DIR`,
+`... preview SCENE --out DIR` and `... bench --out DIR`.
 
 Also reachable from the Blender binary, where SCENE may be left out to use the
 .blend file Blender opened:
@@ -55,6 +56,15 @@ def build_parser():
     compare.add_argument("--frame", type=int, help="frame to render (default: the current frame)")
     compare.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                          help="override a chain setting (repeatable)")
+    preview = commands.add_parser("preview", help="what the live viewport shows: the camera view captured from "
+                                                  "EEVEE's viewport and refined until converged, with timings")
+    preview.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
+    preview.add_argument("--out", required=True, help="output folder for preview.exr, preview.png, first.png, "
+                                                      "preview.json")
+    preview.add_argument("--resolution", help="WIDTHxHEIGHT (default: the scene's)")
+    preview.add_argument("--iterations", type=int, help="stop after this many iterations (default: when converged)")
+    preview.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                         help="override a chain setting (repeatable)")
     measure = commands.add_parser("bench", help="chart speed against accuracy of every method, and stability cases")
     measure.add_argument("--scenes", nargs="+", metavar="SCENE",
                          help=f"scene names in test_scenes/ or scene files (default: {' '.join(bench.DEFAULT_SCENES)})")
@@ -90,6 +100,8 @@ def run(argv=None):
         return bench.run_bench(bench.options_from_arguments(arguments))
     if arguments.command == "compare":
         return _compare(arguments)
+    if arguments.command == "preview":
+        return _preview(arguments)
     request = RenderRequest(
         out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
         resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
@@ -123,6 +135,16 @@ def _compare(arguments):
                {"scene": arguments.scene, "frame": scene.frame_current, "modes": labels, "problems": problems})
     for line in labels + problems:
         print(line)
+
+
+def _preview(arguments):
+    from .preview import run_preview
+    if arguments.iterations is not None and arguments.iterations < 1:
+        raise SSRError(f"--iterations must be at least 1, got {arguments.iterations}")
+    settings = ChainSettings().with_overrides(arguments.overrides)
+    resolution = parse_resolution(arguments.resolution) if arguments.resolution else None
+    scene = load_scene(arguments.scene)
+    return run_preview(scene, arguments.out, settings, resolution, arguments.iterations)
 
 
 class _Terminated(BaseException):

@@ -179,6 +179,10 @@ class StageTimer:
         self.milliseconds[stage] = self.milliseconds.get(stage, 0.0) + (now - self._start) * 1000.0
         self._start = now
 
+    def resume(self):
+        """Start timing again after a pause the stages should not count (a live view between ticks)."""
+        self._start = time.perf_counter()
+
 
 def lap(timer, stage, texture=None):
     """Close STAGE on TIMER (a StageTimer), where the caller was given one."""

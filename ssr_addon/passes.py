@@ -115,9 +115,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     require_square_pixels(scene)
     samples = render_samples(scene, engine, samples)
     lamp_split = lamp_split_method(engine, lamp_split)
-    view_layer = next((layer for layer in scene.view_layers if layer.use), None)
-    if view_layer is None:
-        raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
+    view_layer = rendered_view_layer(scene)
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
         if lamp_split == "unshadowed":
@@ -127,19 +125,9 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         lap(timer, "render")
         width, height = scene.render.resolution_x, scene.render.resolution_y
         if engine == "eevee":
-            # EEVEE's "Specular Light" (glossy direct) holds lamp highlights and
-            # probe/world reflections together; a lamp-only render splits them.
-            specular_all = _layer(layers, "Glossy Direct")
-            if lamp_split == "off" or not _has_lamps(scene):
-                specular_direct = np.zeros_like(specular_all)
-            elif lamp_split == "unshadowed":
-                # The Shadow pass is each sample's shadowed share of all lamp light (every lamp,
-                # diffuse and specular together): exact for one lamp, a lamp-weighted mean for more.
-                specular_direct = _lamp_specular(scene, folder, timer, shadows=False) \
-                    * _layer(layers, "Shadow")[..., :1]
-            else:
-                specular_direct = _lamp_specular(scene, folder, timer)
-            specular_indirect = np.maximum(specular_all - specular_direct, 0.0)
+            lamp_specular = (lambda shadows: _lamp_specular(scene, folder, timer, shadows)) \
+                if has_lamps(scene) else None
+            specular_direct, specular_indirect = split_eevee_specular(layers, lamp_split, lamp_specular)
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
             # the world and emissive surfaces; Glossy Indirect what other surfaces reflect.
@@ -152,6 +140,39 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
             specular_indirect = glossy_indirect + emitter_specular
         view, projection = camera_matrices(scene, width, height)
+    return frame_passes(layers, specular_direct, specular_indirect, view, projection,
+                        (camera.data.clip_start, camera.data.clip_end), engine, samples, material_warnings)
+
+
+def rendered_view_layer(scene):
+    """The view layer SSR renders: the first one enabled for rendering."""
+    view_layer = next((layer for layer in scene.view_layers if layer.use), None)
+    if view_layer is None:
+        raise SSRError(f"scene '{scene.name}' has no view layer enabled for rendering")
+    return view_layer
+
+
+def split_eevee_specular(layers, lamp_split, lamp_specular):
+    """(specular_direct, specular_indirect) of EEVEE's "Specular Light", which holds lamp
+    highlights and probe/world reflections together. LAMP_SPLIT: a lamp_split_method;
+    LAMP_SPECULAR(shadows) gives the specular light of the lamps alone (None: no lamps)."""
+    specular_all = _layer(layers, "Glossy Direct")
+    if lamp_split == "off" or lamp_specular is None:
+        specular_direct = np.zeros_like(specular_all)
+    elif lamp_split == "unshadowed":
+        # The Shadow pass is each sample's shadowed share of all lamp light (every lamp,
+        # diffuse and specular together): exact for one lamp, a lamp-weighted mean for more.
+        specular_direct = lamp_specular(False) * _layer(layers, "Shadow")[..., :1]
+    else:
+        specular_direct = lamp_specular(True)
+    return specular_direct, np.maximum(specular_all - specular_direct, 0.0)
+
+
+def frame_passes(layers, specular_direct, specular_indirect, view, projection, clip, engine, samples,
+                 material_warnings=()):
+    """FramePasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
+    Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), the specular split,
+    the camera's matrices and CLIP (clip_start, clip_end)."""
     aov = _layer(layers, ROUGHNESS_AOV)
     passes_shape = aov.shape[:2]
     coverage = aov[..., 1]
@@ -174,8 +195,8 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         specular_indirect=specular_indirect,
         specular_direct=specular_direct,
         view_matrix=view, projection_matrix=projection,
-        clip_start=camera.data.clip_start, clip_end=camera.data.clip_end, engine=engine, samples=samples,
-        material_warnings=material_warnings)
+        clip_start=clip[0], clip_end=clip[1], engine=engine, samples=samples,
+        material_warnings=tuple(material_warnings))
 
 
 def _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing=None):
@@ -243,7 +264,7 @@ def _layer(layers, name):
     return layers[name]
 
 
-def _has_lamps(scene):
+def has_lamps(scene):
     return any(obj.type == "LIGHT" and not obj.hide_render and obj.data.specular_factor > 0
                for obj in scene.objects)
 
@@ -265,7 +286,7 @@ def lamp_world_for_run():
             bpy.data.worlds.remove(world)
 
 
-def _black_world(changes):
+def black_world(changes):
     """The run's black world, or (outside a run) one that CHANGES removes again."""
     if _shared_lamp_world and _shared_lamp_world[-1] is not None:
         return _shared_lamp_world[-1]
@@ -281,18 +302,23 @@ def _black_world(changes):
     return world
 
 
+def lamps_alone(scene, changes, shadows=True):
+    """Through CHANGES, light SCENE by its lamps alone: the world black, light probes hidden
+    and ray tracing off (it would reflect the lamp-lit scene); without SHADOWS, no shadows."""
+    changes.set(scene, "world", black_world(changes))
+    changes.set(scene.eevee, "use_raytracing", False)
+    if not shadows:
+        changes.set(scene.eevee, "use_shadows", False)
+    for obj in scene.objects:
+        if obj.type == "LIGHT_PROBE":
+            changes.set_all(obj, hide_render=True, hide_viewport=True)
+
+
 def _lamp_specular(scene, folder, timer, shadows=True):
-    """EEVEE's specular light with the world black, light probes hidden and ray tracing off
-    (it would reflect the lamp-lit scene): lamps alone. Without SHADOWS it costs a fraction
-    of a render (at 160x90 on llvmpipe 2 s against 12 s: shadow maps are updated every sample)."""
+    """EEVEE's specular light of the lamps alone. Without SHADOWS it costs a fraction of a
+    render (at 160x90 on llvmpipe 2 s against 12 s: shadow maps are updated every sample)."""
     with TemporaryChanges() as lamp_only:
-        lamp_only.set(scene, "world", _black_world(lamp_only))
-        lamp_only.set(scene.eevee, "use_raytracing", False)
-        if not shadows:
-            lamp_only.set(scene.eevee, "use_shadows", False)
-        for obj in scene.objects:
-            if obj.type == "LIGHT_PROBE":
-                lamp_only.set(obj, "hide_render", True)
+        lamps_alone(scene, lamp_only, shadows)
         layers = _render_to_exr(scene, os.path.join(folder, "lamp_specular.exr"), lamp_only)
     lap(timer, "lamp_split")
     return _layer(layers, "Glossy Direct")

@@ -1,0 +1,49 @@
+"""A still view refined while it holds: the chain on one captured view, a few iterations
+at a time, stopping where a still render stops (chain.FrameRun.next_batch).
+
+The live viewport mode draws its image after every step; the `preview` command
+steps it headless. Both reach exactly the iterations `render --method ssr` runs for
+the same view, so a converged preview is that render's SSR.
+"""
+from .chain import ChainInputs, ChainState, FrameRun
+from .gpu_backend import StageTimer, ensure_backend
+
+
+class ProgressiveView:
+    """The chain on PASSES (FramePasses of one view) with SETTINGS, stepped until done.
+
+    POOL (a gpu_backend.TexturePool) is reused from the view before, so a new view
+    allocates nothing. `timer` holds the chain's stage times of every step so far.
+    """
+
+    def __init__(self, passes, settings, pool=None):
+        ensure_backend()
+        self.state = ChainState.still()
+        if pool is not None:
+            self.state.pool = pool
+        self.state.begin_frame(0)
+        self.timer = StageTimer()
+        self.run = FrameRun(ChainInputs.from_passes(passes, settings), settings, self.state, self.timer)
+        self._pending = self.run.next_batch()
+        self.outputs = None
+
+    @property
+    def done(self):
+        return self._pending == 0
+
+    @property
+    def iterations(self):
+        return self.run.iterations
+
+    def step(self, max_iterations=1):
+        """Add up to MAX_ITERATIONS iterations (no more than the next convergence check wants)
+        and composite them; returns the ChainOutputs so far. Once done, changes nothing."""
+        if not self.done:
+            self.timer.resume()
+            count = min(self._pending, max_iterations)
+            self.run.iterate(count)
+            self._pending -= count
+            if self._pending == 0:
+                self._pending = self.run.next_batch()
+            self.outputs = self.run.composite()
+        return self.outputs
