@@ -107,7 +107,6 @@ def render_frame(scene, request, state=None):
                            EEVEE_RAYTRACING_METHODS.get(request.method),
                            lamp_split=request.settings.lamp_split if use_ssr else "off", timer=timer)
     timer.lap("render")  # reading the passes back
-    height, width = passes.depth.shape
     images = {"passes": passes, "final": passes.combined, "stats": {}}
     if not use_ssr:
         return images, timer
@@ -118,24 +117,31 @@ def render_frame(scene, request, state=None):
         state = ChainState.still()
         state.begin_frame(scene.frame_current)
     outputs = run_chain(inputs, request.settings, state, timer)
-    scale = 2 if request.settings.half_resolution else 1
-    ray_stats = download(outputs.ray_stats_tx)
-    images.update(
-        final=download(outputs.final_tx),
-        reflection=download(outputs.reflection_tx),
-        resolved=download(outputs.resolved_tx),
-        spatial=download(outputs.spatial_tx),
-        history_count=download(outputs.history_count_tx, 1)[..., 0] if outputs.history_count_tx else None,
-        ray_hit=upsample_nearest(download(outputs.ray_hit_tx), scale, (height, width)),
-        ray_dir=upsample_nearest(download(outputs.ray_dir_tx), scale, (height, width)),
-        ray_stats=upsample_nearest(ray_stats, scale, (height, width)))
+    images.update(chain_images(passes, outputs, request.settings))
     timer.lap("readback")
+    return images, timer
+
+
+def chain_images(passes, outputs, settings):
+    """The chain's ChainOutputs as full-resolution arrays by name (final, reflection, the
+    intermediates and ray buffers, as pass_channels writes them) and their stats."""
+    height, width = passes.depth.shape
+    scale = 2 if settings.half_resolution else 1
+    ray_stats = download(outputs.ray_stats_tx)
     ray_class = ray_stats[..., 0]  # one entry per traced ray, before upsampling
     traced = np.count_nonzero(ray_class > 0)
-    images["stats"] = {"iterations": outputs.iterations,
-                       "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4)
-                       if traced else 0.0}
-    return images, timer
+    return {
+        "final": download(outputs.final_tx),
+        "reflection": download(outputs.reflection_tx),
+        "resolved": download(outputs.resolved_tx),
+        "spatial": download(outputs.spatial_tx),
+        "history_count": download(outputs.history_count_tx, 1)[..., 0] if outputs.history_count_tx else None,
+        "ray_hit": upsample_nearest(download(outputs.ray_hit_tx), scale, (height, width)),
+        "ray_dir": upsample_nearest(download(outputs.ray_dir_tx), scale, (height, width)),
+        "ray_stats": upsample_nearest(ray_stats, scale, (height, width)),
+        "stats": {"iterations": outputs.iterations,
+                  "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4) if traced else 0.0},
+    }
 
 
 def upsample_nearest(array, scale, shape):

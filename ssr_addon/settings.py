@@ -76,6 +76,9 @@ UI_PROPERTIES = {
     "planar_object": bpy.props.PointerProperty(
         name="Mirror Plane", type=bpy.types.Object, poll=_is_mesh,
         description="Flat mesh the planar reflection is rendered for; empty: the largest flat mesh"),
+    "live_resolution": bpy.props.IntProperty(
+        name="Live Resolution", default=50, min=10, max=100, subtype="PERCENTAGE",
+        description="Resolution live SSR captures and traces the 3D View at, as a share of the view's size"),
     "show_overlay": bpy.props.BoolProperty(
         name="Show in Viewport", default=False, update=_redraw_views,
         description="Draw the last SSR result over the 3D view (in the camera frame in camera view)"),

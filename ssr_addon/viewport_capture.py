@@ -59,23 +59,23 @@ class ViewportCapture:
             raise SSRError(problem)
         lamp_split = lamp_split_method("eevee", lamp_split)
         self._ensure_offscreen(size)
-        view = mathutils.Matrix(np.asarray(view_matrix, np.float64).tolist())
-        projection = mathutils.Matrix(np.asarray(projection_matrix, np.float64).tolist())
+        view, projection = _matrix(view_matrix), _matrix(projection_matrix)
         with TemporaryChanges() as changes:
             changes.set(self.space.overlay, "show_overlays", False)
             changes.set(self.space.shading, "render_pass", "COMBINED")
             warnings = add_material_aovs(scene, view_layer, changes)
             view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
             wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if lamp_split == "unshadowed" else {}))
-            layers = {name: self._draw(scene, view_layer, view, projection, render_pass)
-                      for name, render_pass in wanted.items()}
+            # A render's passes have three channels but Combined: so do these.
+            layers = {name: self._draw(scene, view_layer, view, projection, render_pass,
+                                       4 if name == "Combined" else 3) for name, render_pass in wanted.items()}
             lap(timer, "capture")
 
             def lamp_specular(shadows):
                 with TemporaryChanges() as lamp_only:
                     lamps_alone(scene, lamp_only, shadows)
                     view_layer.update()
-                    specular = self._draw(scene, view_layer, view, projection, "SPECULAR_LIGHT")
+                    specular = self._draw(scene, view_layer, view, projection, "SPECULAR_LIGHT", 3)
                 view_layer.update()
                 lap(timer, "lamp_split")
                 return specular
@@ -87,6 +87,20 @@ class ViewportCapture:
                             np.asarray(projection_matrix, np.float32), clip, "eevee", scene.eevee.taa_samples,
                             warnings)
 
+    def combined(self, scene, view_layer, view_matrix, projection_matrix, size):
+        """EEVEE's image of the view alone, (H, W, 4)."""
+        problem = capture_problem(scene, self.space)
+        if problem is not None:
+            raise SSRError(problem)
+        self._ensure_offscreen(size)
+        with TemporaryChanges() as changes:
+            changes.set(self.space.overlay, "show_overlays", False)
+            changes.set(self.space.shading, "render_pass", "COMBINED")
+            view_layer.update()
+            combined = self._draw(scene, view_layer, _matrix(view_matrix), _matrix(projection_matrix), "COMBINED", 4)
+        view_layer.update()
+        return combined
+
     def _ensure_offscreen(self, size):
         if self._offscreen is None or (self._offscreen.width, self._offscreen.height) != tuple(size):
             self.release()
@@ -95,20 +109,24 @@ class ViewportCapture:
             except Exception as error:  # gpu raises plain Exceptions for allocation failures
                 raise SSRError(f"cannot make a {size[0]}x{size[1]} offscreen buffer: {error}") from None
 
-    def _draw(self, scene, view_layer, view, projection, render_pass):
-        """One pass of the view as an (H, W, 3) array in image order."""
+    def _draw(self, scene, view_layer, view, projection, render_pass, channels):
+        """One pass of the view as an (H, W, CHANNELS) array in image order."""
         self.space.shading.render_pass = render_pass
         try:
             self._offscreen.draw_view3d(scene, view_layer, self.space, self.region, view, projection,
                                         do_color_management=False)
         except Exception as error:  # a failing draw must end the capture, not Blender
             raise SSRError(f"the viewport could not draw its {render_pass} pass: {error}") from None
-        return download(self._offscreen.texture_color, 3)
+        return download(self._offscreen.texture_color, channels)
 
     def release(self):
         if self._offscreen is not None:
             self._offscreen.free()
             self._offscreen = None
+
+
+def _matrix(array):
+    return mathutils.Matrix(np.asarray(array, np.float64).tolist())
 
 
 def view_depth(position, view_matrix):

@@ -1,7 +1,7 @@
-"""The add-on's user interface: panels and the viewport overlay."""
-from . import overlay, panels
+"""The add-on's user interface: panels, the viewport overlay and live SSR."""
+from . import live, overlay, panels
 
-modules = (panels, overlay)
+modules = (panels, overlay, live)
 
 
 def register():

@@ -7,6 +7,7 @@ The settings sub-panels are generated from the schema's groups
 import bpy
 
 from ..params import PRESETS
+from . import live
 from ..settings import ENABLE_FIELD, grouped_fields
 
 
@@ -92,6 +93,12 @@ class VIEW3D_PT_ssr(bpy.types.Panel):
         column.operator("render.ssr_compare", icon="IMAGE_REFERENCE")
         layout.operator("render.ssr_setup_compositor", icon="NODE_COMPOSITING")
         layout.prop(settings, "show_overlay")
+        session = live.running_session()
+        row = layout.row(align=True)
+        row.operator("view3d.ssr_live", text="Live", icon="PAUSE" if session else "PLAY", depress=session is not None)
+        row.prop(settings, "live_resolution", text="")
+        if session is not None:
+            layout.label(text=session.status)
 
 
 def panel_classes():
