@@ -24,7 +24,7 @@ from ssr_addon.params import SETTINGS_SCHEMA, ChainSettings
 from ssr_addon.render_job import pass_channels, render_frame
 from ssr_addon.scene_io import camera_matrices, load_scene
 from ssr_addon.shaders import get_pass
-from ssr_addon.ui import overlay, panels
+from ssr_addon.ui import live, overlay, panels
 
 BLENDER_EXT = os.path.join(bpy.utils.system_resource("SCRIPTS"), "addons_core", "bl_pkg", "cli", "blender_ext.py")
 sys.path.insert(0, SCENES)
@@ -140,6 +140,8 @@ def _addon_state():
         "app_handlers": {name: len(getattr(bpy.app.handlers, name)) for name in dir(bpy.app.handlers)
                          if isinstance(getattr(bpy.app.handlers, name), list)},
         "overlay": overlay.is_registered(),
+        "live": (live._draw_handle, live.running_session(), live._timer),
+        "view3d_ops": set(dir(bpy.ops.view3d)),
     }
 
 
@@ -152,6 +154,7 @@ def test_register_unregister_twice_leaves_nothing_behind():
         assert registered["scene_ssr"] and registered["property_group"] and registered["overlay"]
         assert {"RENDER_PT_ssr", "RENDER_PT_ssr_tracing", "VIEW3D_PT_ssr"} <= registered["types"]
         assert {"ssr_render_frame", "ssr_render_animation", "ssr_compare", "ssr_setup_compositor"} <= registered["ops"]
+        assert "ssr_live" in registered["view3d_ops"] and registered["live"][0] is not None
         handle = overlay._handle
         ssr_addon.unregister()
         assert _addon_state() == before
@@ -297,8 +300,10 @@ def test_sidebar_offers_modes_debug_view_operators_and_overlay(addon):
     assert "probe_object" in {entry[1] for entry in _draw(panels.VIEW3D_PT_ssr, "draw", scene) if entry[0] == "prop"}
     scene.ssr.comparison_mode = "SSR"
     operators_drawn = {entry[1] for entry in log if entry[0] == "operator"}
-    # Every operator but the presets, which sit in the Render properties panel.
-    assert operators_drawn == {cls.bl_idname for cls in operators.classes} - {"render.ssr_apply_preset"}
+    # Every operator but the presets, which sit in the Render properties panel; and the Live toggle.
+    assert operators_drawn == ({cls.bl_idname for cls in operators.classes + live.classes}
+                               - {"render.ssr_apply_preset"})
+    assert {"debug_view", "live_resolution"} <= {entry[1] for entry in log if entry[0] == "prop"}
     scene.ssr.show_overlay = True  # its update redraws 3D views: none here
     scene.camera = None
     log = _draw(panels.VIEW3D_PT_ssr, "draw", scene)

@@ -39,12 +39,14 @@ def draw_live():
         draw_session(session)
 
 
+@bpy.app.handlers.persistent  # app handlers are dropped on file load unless persistent
 def _scene_changed(scene, depsgraph):
     session = _session
     if session is not None:
         session.scene_version += 1
 
 
+@bpy.app.handlers.persistent
 def _file_loading(*_):
     stop()
 

@@ -1,0 +1,191 @@
+"""Live SSR in the 3D View and the headless `preview` command (issue "Live SSR in the viewport").
+
+The capture goes through EEVEE's viewport engine (draw_view3d on the startup
+file's 3D View), so these tests see what the artist's viewport would give the
+chain; the preview is checked against `render --method ssr` of the same frame,
+which reads the passes another way (a final render's EXR).
+"""
+import json
+import os
+
+import bpy
+import mathutils
+import numpy as np
+import pytest
+
+import ssr_addon
+from ssr_addon.errors import SSRError
+from ssr_addon.live_view import DEBOUNCE_S, LiveSession
+from ssr_addon.scene_io import load_scene
+from ssr_addon.ui import live
+from ssr_addon.viewport_capture import headless_view3d
+
+from conftest import SCENES, read_exr, rgb, run_cli
+
+RESOLUTION = "160x90"
+
+
+def reflective_relative_error(image, reference, passes):
+    """Relative L1 error of IMAGE against REFERENCE on the reflective pixels (as the bench counts them)."""
+    specular = rgb(passes, "Specular Color").mean(axis=-1)
+    reflective = (passes["Roughness.V"] <= 0.5) & (specular >= 0.1)
+    assert reflective.sum() > 1000
+    return float(np.abs(image - reference)[reflective].sum() / np.abs(reference)[reflective].sum())
+
+
+def test_the_preview_of_the_camera_view_is_the_render_of_the_frame(tmp_path):
+    run_cli("render", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "render", "--method", "ssr",
+            "--resolution", RESOLUTION)
+    result = run_cli("preview", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "preview",
+                     "--resolution", RESOLUTION)
+    assert "first image" in result.stdout
+    render = rgb(read_exr(tmp_path / "render" / "frame_0001.exr"))
+    passes = read_exr(tmp_path / "render" / "frame_0001.passes.exr")
+    preview = rgb(read_exr(tmp_path / "preview" / "preview.exr"))
+    without_ssr = rgb(passes, "Combined")
+    # The issue's bound; and SSR must show: the engine's own image is far from it.
+    assert reflective_relative_error(preview, render, passes) <= 0.1
+    assert reflective_relative_error(without_ssr, render, passes) > 0.1
+    timings = json.loads((tmp_path / "preview" / "preview.json").read_text())
+    report = json.loads((tmp_path / "render" / "report.json").read_text())
+    assert timings["iterations"] == report["frames"][0]["iterations"]  # stops where the render stops
+    assert timings["time_to_first_image_ms"] <= timings["time_to_last_image_ms"]
+    assert set(timings["capture_ms"]) == {"capture", "lamp_split"} and timings["chain_ms_per_iteration"] > 0
+    assert (tmp_path / "preview" / "first.png").is_file() and (tmp_path / "preview" / "preview.png").is_file()
+
+
+def test_bad_preview_arguments_get_one_line(tmp_path):
+    result = run_cli("preview", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path, "--iterations", "0",
+                     check=False)
+    assert result.returncode == 2
+    assert result.stderr.strip().splitlines() == ["error: --iterations must be at least 1, got 0"]
+
+
+@pytest.fixture(scope="module")
+def live_view(gpu_backend):
+    """The mirror floor in the startup file's 3D View, Rendered shading, the add-on registered."""
+    scene = load_scene(os.path.join(SCENES, "mirror_floor.py"))
+    ssr_addon.register()
+    try:
+        space, region = headless_view3d()
+        shading = space.shading.type
+        space.shading.type = "RENDERED"
+        scene.ssr.live_resolution = 10
+        yield scene, space, region
+        space.shading.type = shading
+    finally:
+        live.stop()
+        ssr_addon.unregister()
+
+
+def _tick_until(session, scene, clock, condition, limit=400):
+    for _ in range(limit):
+        clock[0] += DEBOUNCE_S
+        session.tick(scene, now=clock[0])
+        if condition():
+            return
+    raise AssertionError(f"not reached after {limit} ticks: {session.status}")
+
+
+def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view):
+    scene, space, region = live_view
+    session = LiveSession(space, region, space.region_3d)
+    clock = [0.0]
+    assert not session.tick(scene, now=clock[0]) and session.texture is None  # waits for the view to hold
+    assert session.tick(scene, now=clock[0] + DEBOUNCE_S / 2) is False and session.texture is None
+    _tick_until(session, scene, clock, lambda: session.texture is not None)
+    seen = [session._view.iterations]
+    first_image = session.texture
+    _tick_until(session, scene, clock, lambda: seen.append(session._view.iterations) or session._view.done)
+    assert seen == sorted(seen) and seen[-1] > seen[0]
+    assert "converged" in session.status and f"{seen[-1]} iterations" in session.status
+    assert session.tick(scene, now=clock[0] + 1) is False  # converged: nothing more to draw
+    assert session.texture is first_image  # the pool's final texture, redrawn in place
+
+    space.region_3d.view_location += mathutils.Vector((0.2, 0.0, 0.0))  # orbiting: the history is the old view's
+    assert session.tick(scene, now=clock[0] + 2) is True
+    assert session.texture is None and "waiting" in session.status
+    _tick_until(session, scene, clock, lambda: session.texture is not None)
+    assert session._view.iterations == 1  # started over
+
+    thickness = scene.ssr.thickness
+    scene.ssr.thickness = thickness * 2  # a setting changes: restart too
+    try:
+        assert session.tick(scene, now=clock[0] + 10) is True and session.texture is None
+    finally:
+        scene.ssr.thickness = thickness
+        session.release()
+
+
+def test_the_draw_handler_draws_the_sessions_image(live_view):
+    import gpu
+    from ssr_addon.gpu_backend import download, upload
+    scene, space, region = live_view
+    session = LiveSession(space, region, space.region_3d)
+    red = np.zeros((region.height, region.width, 4), np.float32)
+    red[..., 0], red[..., 3] = 0.5, 1.0
+    session._texture = upload(red)
+    offscreen = gpu.types.GPUOffScreen(region.width, region.height, format="RGBA32F")
+    with offscreen.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
+        gpu.matrix.load_identity()  # pixel space, as a POST_PIXEL handler has it
+        gpu.matrix.load_projection_matrix(mathutils.Matrix.Translation((-1.0, -1.0, 0.0)) @ mathutils.Matrix.Diagonal(
+            (2.0 / region.width, 2.0 / region.height, 1.0, 1.0)))
+        assert live.draw_session(session)
+    drawn = download(offscreen.texture_color)
+    offscreen.free()
+    srgb_half = 1.055 * 0.5 ** (1 / 2.4) - 0.055  # scene linear 0.5 on an sRGB display
+    assert np.allclose(drawn[..., 0], srgb_half, atol=0.01) and np.allclose(drawn[..., 1:3], 0.0, atol=0.01)
+    session._texture = None
+    assert not live.draw_session(session)
+
+
+def test_a_view_the_capture_cannot_use_stops_with_a_message(live_view):
+    scene, space, region = live_view
+    session = LiveSession(space, region, space.region_3d)
+    space.shading.type = "SOLID"
+    try:
+        with pytest.raises(SSRError, match="Material Preview or Rendered"):
+            session.tick(scene)
+    finally:
+        space.shading.type = "RENDERED"
+    scene.render.engine = "CYCLES"
+    try:
+        with pytest.raises(SSRError, match="EEVEE"):
+            session.tick(scene)
+    finally:
+        scene.render.engine = "BLENDER_EEVEE"
+
+
+def test_a_failing_draw_is_a_message_and_the_view_is_restored(live_view):
+    scene, space, region = live_view
+    session = LiveSession(space, region, space.region_3d)
+    width, height = session.capture_size(scene)
+
+    class BrokenOffscreen:  # offscreen EEVEE crashes in some Blender versions (GBuffer::acquire)
+        def __init__(self):
+            self.width, self.height = width, height
+
+        def draw_view3d(self, *args, **kwargs):
+            raise RuntimeError("GBuffer::acquire")
+
+        def free(self):
+            pass
+    session.capture._offscreen = BrokenOffscreen()
+    before = (space.shading.render_pass, space.overlay.show_overlays, len(scene.view_layers[0].aovs))
+    assert session.tick(scene, now=0.0) is False
+    with pytest.raises(SSRError, match="could not draw its COMBINED pass: GBuffer::acquire"):
+        session.tick(scene, now=1.0)
+    assert (space.shading.render_pass, space.overlay.show_overlays, len(scene.view_layers[0].aovs)) == before
+    session.release()
+
+
+def test_unregistering_stops_the_session_and_leaves_no_timer(live_view):
+    scene, space, region = live_view
+    window_manager = bpy.context.window_manager
+    live.start(LiveSession(space, region, space.region_3d), window_manager, window_manager.windows[0])
+    assert live.running_session() is not None and live._timer is not None
+    ssr_addon.unregister()
+    try:
+        assert live.running_session() is None and live._timer is None and live._draw_handle is None
+    finally:
+        ssr_addon.register()  # for the fixture's teardown
