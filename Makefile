@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 OUT ?= out/demo
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench bench-stages crops bench-chain bench-memory bench-lamps dist validate clean
+.PHONY: demo test bench bench-stages crops bench-chain bench-memory bench-lamps bench-live dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -47,6 +47,10 @@ bench-memory: $(STAMP)
 
 bench-lamps: $(STAMP)
 	$(PY) benchmarks/lamp_split.py --readme README.md
+
+# Latency of live SSR from a view change to the first image and to convergence (docs/live/).
+bench-live: $(STAMP)
+	$(PY) benchmarks/live_latency.py --readme README.md
 
 validate: $(STAMP)
 	$(PY) $(BLENDER_EXT) validate .

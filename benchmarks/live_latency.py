@@ -1,0 +1,70 @@
+"""Live SSR latency: from a view change to the first SSR image and to convergence.
+
+    .venv/bin/python benchmarks/live_latency.py [--resolutions WxH ...] [--readme README.md]
+
+At each resolution the scene camera's view is previewed once to warm EEVEE's viewport
+(shader compilation), then the camera moves a little and the view is previewed again,
+exactly as the live mode captures and refines a view that has just stopped moving
+(ssr_addon.preview). The second preview's images (first image, converged) go to
+docs/live/WxH/ and its timings into the table.
+"""
+import argparse
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+
+import bpy  # noqa: E402
+
+from ssr_addon.gpu_backend import describe_gpu, ensure_backend  # noqa: E402
+from ssr_addon.outputs import rewrite_readme_block  # noqa: E402
+from ssr_addon.params import ChainSettings  # noqa: E402
+from ssr_addon.preview import run_preview  # noqa: E402
+from ssr_addon.render_job import parse_resolution  # noqa: E402
+from ssr_addon.scene_io import load_scene  # noqa: E402
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SCENE = "mirror_floor"
+OUT = os.path.join(REPO, "docs", "live")
+
+
+def measure(resolution):
+    scene = load_scene(os.path.join(REPO, "test_scenes", f"{SCENE}.py"))
+    folder = os.path.join(OUT, "{}x{}".format(*resolution))
+    run_preview(scene, folder, ChainSettings(), resolution, log=lambda line: None)  # warms the viewport engine
+    scene.camera.location.x += 0.05  # the view changes, as after a navigation
+    bpy.context.view_layer.update()
+    return run_preview(scene, folder, ChainSettings(), resolution)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=[(320, 180), (1280, 720)])
+    parser.add_argument("--readme", help="rewrite the live block of this README")
+    arguments = parser.parse_args()
+    rows = [measure(resolution) for resolution in arguments.resolutions]
+    ensure_backend()
+    lines = [f"Latest run: `.venv/bin/python benchmarks/live_latency.py"
+             f"{' --readme README.md' if arguments.readme else ''}` on {describe_gpu()['renderer']}, "
+             f"{SCENE}, balanced preset, after a camera move (EEVEE already compiled).", "",
+             "| resolution | first SSR image | converged | iterations | capture (passes) | capture (lamp split) "
+             "| chain per iteration |",
+             "|---|---|---|---|---|---|---|"]
+    for row in rows:
+        capture = row["capture_ms"]
+        lines.append(f"| {row['resolution'][0]}x{row['resolution'][1]} | {row['time_to_first_image_ms'] / 1000:.2f} s "
+                     f"| {row['time_to_last_image_ms'] / 1000:.2f} s | {row['iterations']} "
+                     f"| {capture['capture']:.0f} ms | {capture.get('lamp_split', 0.0):.0f} ms "
+                     f"| {row['chain_ms_per_iteration']:.1f} ms |")
+    first = arguments.resolutions[0]
+    folder = "docs/live/{}x{}".format(*first)
+    lines += ["", f"First image, then converged ({first[0]}x{first[1]}):", "",
+              f"![first live image]({folder}/first.png) ![converged live image]({folder}/preview.png)"]
+    text = "\n".join(lines)
+    print(text)
+    if arguments.readme:
+        rewrite_readme_block(arguments.readme, "live", text, "Live SSR in the viewport")
+
+
+if __name__ == "__main__":
+    main()
