@@ -54,15 +54,10 @@ class ViewportCapture:
     def capture(self, scene, view_layer, view_matrix, projection_matrix, size, clip, lamp_split="auto", timer=None):
         """FramePasses of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX (4x4 arrays) at SIZE
         (width, height); CLIP is (clip_start, clip_end). TIMER gets "capture" and "lamp_split"."""
-        problem = capture_problem(scene, self.space)
-        if problem is not None:
-            raise SSRError(problem)
         lamp_split = lamp_split_method("eevee", lamp_split)
-        self._ensure_offscreen(size)
         view, projection = _matrix(view_matrix), _matrix(projection_matrix)
         with TemporaryChanges() as changes:
-            changes.set(self.space.overlay, "show_overlays", False)
-            changes.set(self.space.shading, "render_pass", "COMBINED")
+            self._prepare(scene, size, changes)
             warnings = add_material_aovs(scene, view_layer, changes)
             view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
             wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if lamp_split == "unshadowed" else {}))
@@ -89,17 +84,22 @@ class ViewportCapture:
 
     def combined(self, scene, view_layer, view_matrix, projection_matrix, size):
         """EEVEE's image of the view alone, (H, W, 4)."""
-        problem = capture_problem(scene, self.space)
-        if problem is not None:
-            raise SSRError(problem)
-        self._ensure_offscreen(size)
         with TemporaryChanges() as changes:
-            changes.set(self.space.overlay, "show_overlays", False)
-            changes.set(self.space.shading, "render_pass", "COMBINED")
+            self._prepare(scene, size, changes)
             view_layer.update()
             combined = self._draw(scene, view_layer, _matrix(view_matrix), _matrix(projection_matrix), "COMBINED", 4)
         view_layer.update()
         return combined
+
+    def _prepare(self, scene, size, changes):
+        """Check that the view can be captured, size the offscreen buffer, and (through CHANGES)
+        turn the overlays off: the grid and outlines would land in the passes."""
+        problem = capture_problem(scene, self.space)
+        if problem is not None:
+            raise SSRError(problem)
+        self._ensure_offscreen(size)
+        changes.set(self.space.overlay, "show_overlays", False)
+        changes.set(self.space.shading, "render_pass", self.space.shading.render_pass)  # _draw switches it
 
     def _ensure_offscreen(self, size):
         if self._offscreen is None or (self._offscreen.width, self._offscreen.height) != tuple(size):
