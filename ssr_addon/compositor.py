@@ -26,6 +26,7 @@ DEBUG_VIEW_LAYERS = {
     "HIT_UV": "SSR Hit",
     "RAY_CLASS": "SSR Ray Class",
     "HIZ_LEVEL": "SSR HiZ Level",
+    "ITERATIONS": "SSR Iterations",
 }
 
 

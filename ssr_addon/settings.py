@@ -26,6 +26,7 @@ DEBUG_VIEWS = (
     ("HIT_UV", "Hit UV", "Screen position each ray hit (red: x, green: y)"),
     ("RAY_CLASS", "Ray Class", "Which tracer each pixel's ray took: 0 none, 1 cheap linear march, 2 expensive Hi-Z"),
     ("HIZ_LEVEL", "Hi-Z Level", "Coarsest Hi-Z pyramid level each ray reached"),
+    ("ITERATIONS", "Iterations", "March steps each pixel's ray took (the last trace iteration)"),
 )
 
 
