@@ -7,7 +7,7 @@ reads bpy.context: the caller hands in the scene and the time.
 - While the view, the scene or a setting keeps changing, nothing is drawn: a stale
   image over a moving view misleads more than none.
 - Once the view has held for DEBOUNCE_S, the passes are captured (viewport_capture)
-  and a ProgressiveView starts: each tick adds iterations for about TICK_BUDGET_S and
+  and a ProgressiveView starts: each tick adds iterations for about STEP_SECONDS and
   the image refines until it stops where a still render stops.
 - Any change restarts it: the history belongs to one view.
 The comparison modes (SSR, cubemap, planar, none) and the debug views apply as in
@@ -24,13 +24,12 @@ from .errors import SSRError
 from .gpu_backend import StageTimer, TexturePool, upload
 from .overrides import TemporaryChanges
 from .passes import rendered_view_layer
-from .progressive import ProgressiveView
+from .progressive import STEP_SECONDS, ProgressiveView
 from .render_job import chain_images
 from .settings import chain_settings
 from .viewport_capture import ViewportCapture, capture_problem
 
 DEBOUNCE_S = 0.3       # the view must hold this long before a capture starts
-TICK_BUDGET_S = 0.05   # iterations a tick adds: as many as fit in this (at least one)
 TICK_INTERVAL_S = 0.1  # how often the caller should tick
 
 
@@ -50,6 +49,7 @@ class LiveSession:
         self._view = None            # its ProgressiveView (None in a baseline mode)
         self._passes = None
         self._texture = None         # what draw shows
+        self._shown_debug_view = None
         self._capture_ms = 0.0
         self.status = "SSR live: waiting for the view to hold still"
 
@@ -69,7 +69,7 @@ class LiveSession:
         return max(int(self.region.width * scale), 4), max(int(self.region.height * scale), 4)
 
     def _view_key(self, scene):
-        """Everything whose change restarts the view. The navigation state is read as well as
+        """Everything whose change restarts the view (a debug view only redraws). The navigation state is read as well as
         the matrices: those are recomputed only when the region redraws."""
         settings, view = scene.ssr, self.region_3d
         navigation = (*view.view_location, *view.view_rotation, view.view_distance, view.view_perspective,
@@ -77,8 +77,8 @@ class LiveSession:
                       self.space.clip_start, self.space.clip_end, scene.camera)
         matrices = np.round(np.concatenate([np.array(view.view_matrix), np.array(view.window_matrix)]), 5)
         return (navigation, tuple(matrices.ravel()), self.capture_size(scene), self.space.shading.type,
-                astuple(chain_settings(settings)), settings.comparison_mode, settings.debug_view,
-                settings.probe_object, settings.planar_object)
+                astuple(chain_settings(settings)), settings.comparison_mode, settings.probe_object,
+                settings.planar_object)
 
     def tick(self, scene, now=None):
         """Advance the session; returns True when what draw shows has changed. Raises SSRError
@@ -102,14 +102,14 @@ class LiveSession:
                 return False
             self._start(scene)
             return True
-        if self._view is None or self._view.done:
+        if self._view is None:
             return False
-        deadline = time.perf_counter() + TICK_BUDGET_S
-        while True:
-            outputs = self._view.step()
-            if self._view.done or time.perf_counter() >= deadline:
-                break
-        self._show(scene, outputs)
+        if self._view.done:
+            if self._shown_debug_view == scene.ssr.debug_view:
+                return False
+            self._show(scene, self._view.outputs)
+        else:
+            self._show(scene, self._view.step(seconds=STEP_SECONDS))
         return True
 
     def _start(self, scene):
@@ -118,7 +118,7 @@ class LiveSession:
         mode = settings.comparison_mode
         size = self.capture_size(scene)
         timer = StageTimer()
-        self._captured = self._absorb_updates = True
+        self._captured = True
         try:
             with TemporaryChanges() as changes:
                 apply_baseline(scene, mode.lower(), changes, probe_object=settings.probe_object,
@@ -151,8 +151,9 @@ class LiveSession:
         if debug_view == "FINAL":
             self._texture = outputs.final_tx
         else:
-            images = dict(chain_images(self._passes, outputs, view.run.frame.settings), passes=self._passes)
+            images = dict(chain_images(self._passes, outputs, view.settings), passes=self._passes)
             self._texture = upload(debug_pixels(images, debug_view))
+        self._shown_debug_view = debug_view
         chain_ms = sum(view.timer.milliseconds.values())
         state = "converged" if view.done else "refining"
         self.status = (f"SSR live: {view.iterations} iterations, {state}; capture {self._capture_ms:.0f} ms, "

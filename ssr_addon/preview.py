@@ -2,7 +2,8 @@
 
 The scene camera's view is captured through the startup file's 3D View exactly as
 the live mode captures the user's (viewport_capture), in Rendered shading with EEVEE,
-then refined step by step (progressive) until it converges or reaches --iterations.
+then refined step by step as the live view refines it (progressive), until it converges
+or reaches --iterations.
 Writes preview.exr and preview.png (converged), first.png (the first image the live
 view would show) and preview.json (timings: time to the first image, capture and
 chain milliseconds per iteration).
@@ -14,7 +15,7 @@ from .gpu_backend import StageTimer, download, ensure_backend
 from .outputs import prepare_output_folder, write_display_png, write_json, write_rgba_exr, written_together
 from .overrides import TemporaryChanges
 from .passes import render_size, rendered_view_layer
-from .progressive import ProgressiveView
+from .progressive import STEP_SECONDS, ProgressiveView
 from .scene_io import camera_matrices, require_camera
 from .viewport_capture import ViewportCapture, headless_view3d
 
@@ -45,7 +46,7 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, log=
     first = download(refining.step().final_tx)
     first_image_ms = (time.perf_counter() - started) * 1000.0
     while not refining.done and (iterations is None or refining.iterations < iterations):
-        refining.step()
+        refining.step(STEP_SECONDS, None if iterations is None else iterations - refining.iterations)
     converged_ms = (time.perf_counter() - started) * 1000.0
     final = download(refining.outputs.final_tx)
     chain_ms = sum(refining.timer.milliseconds.values())

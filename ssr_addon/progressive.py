@@ -5,8 +5,12 @@ The live viewport mode draws its image after every step; the `preview` command
 steps it headless. Both reach exactly the iterations `render --method ssr` runs for
 the same view, so a converged preview is that render's SSR.
 """
+import time
+
 from .chain import ChainInputs, ChainState, FrameRun
 from .gpu_backend import StageTimer, ensure_backend
+
+STEP_SECONDS = 0.05  # a step after the first adds iterations for about this long (the live view's tick)
 
 
 class ProgressiveView:
@@ -22,6 +26,7 @@ class ProgressiveView:
         if pool is not None:
             self.state.pool = pool
         self.state.begin_frame(0)
+        self.settings = settings
         self.timer = StageTimer()
         self.run = FrameRun(ChainInputs.from_passes(passes, settings), settings, self.state, self.timer)
         self._pending = self.run.next_batch()
@@ -35,15 +40,20 @@ class ProgressiveView:
     def iterations(self):
         return self.run.iterations
 
-    def step(self, max_iterations=1):
-        """Add up to MAX_ITERATIONS iterations (no more than the next convergence check wants)
-        and composite them; returns the ChainOutputs so far. Once done, changes nothing."""
+    def step(self, seconds=0.0, max_iterations=None):
+        """Add iterations (at least one, at most MAX_ITERATIONS) until SECONDS have passed, then
+        composite once; returns the ChainOutputs so far. Once done, changes nothing."""
         if not self.done:
             self.timer.resume()
-            count = min(self._pending, max_iterations)
-            self.run.iterate(count)
-            self._pending -= count
-            if self._pending == 0:
-                self._pending = self.run.next_batch()
+            deadline = time.perf_counter() + seconds
+            added = 0
+            while max_iterations is None or added < max_iterations:
+                self.run.iterate()
+                added += 1
+                self._pending -= 1
+                if self._pending == 0:
+                    self._pending = self.run.next_batch()
+                if self.done or time.perf_counter() >= deadline:
+                    break
             self.outputs = self.run.composite()
         return self.outputs

@@ -142,8 +142,13 @@ def find_view3d(screen):
     if not areas:
         return None
     area = max(areas, key=lambda area: area.width * area.height)
-    region = next((region for region in area.regions if region.type == "WINDOW"), None)
+    region = window_region(area)
     return (area.spaces.active, region) if region is not None else None
+
+
+def window_region(area):
+    """The region of AREA that draws the view itself (not its header or sidebar), or None."""
+    return next((region for region in area.regions if region.type == "WINDOW"), None)
 
 
 def headless_view3d():

@@ -102,6 +102,14 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
     assert session.tick(scene, now=clock[0] + 1) is False  # converged: nothing more to draw
     assert session.texture is first_image  # the pool's final texture, redrawn in place
 
+    scene.ssr.debug_view = "CONFIDENCE"  # another look at the same iterations: no new capture
+    try:
+        assert session.tick(scene, now=clock[0] + 1.5) is True
+        assert session.texture is not first_image and session._view.iterations == seen[-1]
+    finally:
+        scene.ssr.debug_view = "FINAL"
+    assert session.tick(scene, now=clock[0] + 1.6) is True and session.texture is first_image
+
     space.region_3d.view_location += mathutils.Vector((0.2, 0.0, 0.0))  # orbiting: the history is the old view's
     assert session.tick(scene, now=clock[0] + 2) is True
     assert session.texture is None and "waiting" in session.status

@@ -12,6 +12,7 @@ from gpu_extras.presets import draw_texture_2d
 
 from ..errors import SSRError
 from ..live_view import TICK_INTERVAL_S, LiveSession
+from ..viewport_capture import window_region
 
 _session = None
 _timer = None          # (window manager, timer) of the running session
@@ -84,8 +85,7 @@ class VIEW3D_OT_ssr_live(bpy.types.Operator):
         if _session is not None:
             stop()
             return {"FINISHED"}
-        region = next((region for region in context.area.regions if region.type == "WINDOW"), None)
-        session = LiveSession(context.space_data, region, context.space_data.region_3d)
+        session = LiveSession(context.space_data, window_region(context.area), context.space_data.region_3d)
         problem = session.problem(context.scene)
         if problem is not None:
             self.report({"WARNING"}, problem)
@@ -100,7 +100,7 @@ class VIEW3D_OT_ssr_live(bpy.types.Operator):
         if _session is not session:  # stopped by the toggle, a file load or unregistering
             return {"FINISHED"}
         if event.type == "ESC":
-            self._end(context, session)
+            self._end(context)
             return {"FINISHED"}
         if event.type != "TIMER":
             return {"PASS_THROUGH"}
@@ -108,13 +108,13 @@ class VIEW3D_OT_ssr_live(bpy.types.Operator):
             changed = session.tick(context.scene)
         except SSRError as error:
             self.report({"WARNING"}, f"live SSR stopped: {error}")
-            self._end(context, session)
+            self._end(context)
             return {"CANCELLED"}
         if changed:
             self._redraw(context)
         return {"PASS_THROUGH"}
 
-    def _end(self, context, session):
+    def _end(self, context):
         stop()
         self._redraw(context)
 
