@@ -15,13 +15,16 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 import bpy  # noqa: E402
+import gpu  # noqa: E402
+import numpy as np  # noqa: E402
 
-from ssr_addon.gpu_backend import describe_gpu, ensure_backend  # noqa: E402
+from ssr_addon.gpu_backend import StageTimer, describe_gpu, ensure_backend, upload  # noqa: E402
 from ssr_addon.outputs import rewrite_readme_block  # noqa: E402
 from ssr_addon.params import ChainSettings  # noqa: E402
 from ssr_addon.preview import run_preview  # noqa: E402
 from ssr_addon.render_job import parse_resolution  # noqa: E402
 from ssr_addon.scene_io import load_scene  # noqa: E402
+from ssr_addon.ui.live import draw_image  # noqa: E402
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENE = "mirror_floor"
@@ -34,7 +37,25 @@ def measure(resolution):
     run_preview(scene, folder, ChainSettings(), resolution, log=lambda line: None)  # warms the viewport engine
     scene.camera.location.x += 0.05  # the view changes, as after a navigation
     bpy.context.view_layer.update()
-    return run_preview(scene, folder, ChainSettings(), resolution)
+    timings = run_preview(scene, folder, ChainSettings(), resolution)
+    timings["draw_ms"] = overlay_draw_ms(timings["resolution"])
+    return timings
+
+
+def overlay_draw_ms(size, repeats=20):
+    """Milliseconds the live overlay's draw (ui.live.draw_image) takes over a SIZE region."""
+    image = upload(np.full((size[1], size[0], 4), 0.5, np.float32))
+    offscreen = gpu.types.GPUOffScreen(*size, format="RGBA16F")
+    try:
+        with offscreen.bind():
+            draw_image(image, *size)  # the first draw compiles the image shader
+            timer = StageTimer()
+            for _ in range(repeats):
+                draw_image(image, *size)
+            timer.lap("draw", offscreen.texture_color)
+    finally:
+        offscreen.free()
+    return timer.milliseconds["draw"] / repeats
 
 
 def main():
@@ -48,14 +69,15 @@ def main():
              f"{' --readme README.md' if arguments.readme else ''}` on {describe_gpu()['renderer']}, "
              f"{SCENE}, balanced preset, after a camera move (EEVEE already compiled).", "",
              "| resolution | first SSR image | converged | iterations | capture (passes) | capture (lamp split) "
-             "| chain per iteration |",
-             "|---|---|---|---|---|---|---|"]
+             "| chain per iteration | overlay draw | add-on share (chain + draw) |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         capture = row["capture_ms"]
         lines.append(f"| {row['resolution'][0]}x{row['resolution'][1]} | {row['time_to_first_image_ms'] / 1000:.2f} s "
                      f"| {row['time_to_last_image_ms'] / 1000:.2f} s | {row['iterations']} "
                      f"| {capture['capture']:.0f} ms | {capture.get('lamp_split', 0.0):.0f} ms "
-                     f"| {row['chain_ms_per_iteration']:.1f} ms |")
+                     f"| {row['chain_ms_per_iteration']:.1f} ms | {row['draw_ms']:.2f} ms "
+                     f"| {row['chain_ms_per_iteration'] + row['draw_ms']:.1f} ms |")
     first = arguments.resolutions[0]
     folder = "docs/live/{}x{}".format(*first)
     lines += ["", f"First image, then converged ({first[0]}x{first[1]}):", "",

@@ -14,8 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .convergence import ConvergenceCheck
 from .frame_sequence import FrameSequence
-from .gpu_backend import TexturePool, download, lap, uniform_buffer, upload
+from .gpu_backend import TexturePool, lap, uniform_buffer, upload
 from .gpu_params import MAX_PYRAMID_LEVELS
 from .shaders import DFG_SIZE, get_pass
 
@@ -92,7 +93,7 @@ class ChainState:
     sequence: FrameSequence = field(default_factory=FrameSequence)
     previous_world_to_clip: np.ndarray = None
     previous_radiance_tx: object = None   # the last frame's lit scene: what its reflections showed
-    last_reflection: np.ndarray = None    # the last frame's reflection as downloaded (noise_threshold on)
+    convergence: ConvergenceCheck = field(default_factory=ConvergenceCheck)  # holds the last check's reflection
     dfg_tx: object = None                 # the FG table, computed once
 
     @classmethod
@@ -113,7 +114,7 @@ class ChainState:
     def _forget_last_frame(self):
         self.previous_world_to_clip = None
         self.previous_radiance_tx = None
-        self.last_reflection = None
+        self.convergence.forget()
 
 
 @dataclass
@@ -243,10 +244,10 @@ class FrameRun:
         world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
         self.frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
                                   color_tx, color_rects, world_to_clip)
-        self.continues = state.sequence.has_history  # history from the previous frame
+        if not state.sequence.has_history:  # the last frame's reflection is no yardstick for this one
+            state.convergence.forget()
         self.iterations = 0
         self.outputs = self.blocks = None
-        self.checked_reflection = None  # the reflection at the last convergence check
 
     def iterate(self, count=1):
         for _ in range(count):
@@ -261,7 +262,7 @@ class FrameRun:
         double the iterations (FrameSequence.doubling): the change from n to 2n
         iterations is about 2n's own error. A frame with history first compares with
         the last frame's reflection: in a still shot it has settled already. The
-        downloads and comparisons are the "convergence" stage.
+        measurement (convergence.ConvergenceCheck) is the "convergence" stage.
         """
         frame = self.frame
         settings, state, sequence = frame.settings, frame.state, frame.state.sequence
@@ -269,17 +270,10 @@ class FrameRun:
             return sequence.iteration_count(settings)
         if not sequence.doubling(settings):
             return 0
-        before = self.checked_reflection
-        if before is None and self.continues:
-            before = state.last_reflection
-        self.checked_reflection = self.reflection()
-        done = settled(before, self.checked_reflection, settings)
+        change = state.convergence.change(self.outputs["reflection_tx"], state.pool)
         lap(frame.timer, "convergence")
+        done = change is not None and change <= settings.noise_threshold
         return 0 if done else sequence.doubling(settings)
-
-    def reflection(self):
-        """The running mean's reflection as an array (premultiplied radiance, confidence)."""
-        return download(self.outputs["reflection_tx"])
 
     def composite(self):
         """Composite the iterations so far; returns ChainOutputs."""
@@ -311,14 +305,7 @@ def run_chain(inputs, settings, state, timer=None):
     run = FrameRun(inputs, settings, state, timer)
     while added := run.next_batch():
         run.iterate(added)
-    state.last_reflection = run.checked_reflection
     return run.composite()
-
-
-def settled(before, after, settings):
-    """Whether AFTER moved less than noise_threshold from BEFORE (None, or another size: unknown)."""
-    return (before is not None and before.shape == after.shape
-            and relative_change(before, after) <= settings.noise_threshold)
 
 
 def _run_iteration(frame, first):
@@ -391,30 +378,3 @@ def _run_iteration(frame, first):
     return {"ray_hit_tx": ray_hit_tx, "ray_dir_tx": ray_dir_tx, "ray_stats_tx": ray_stats_tx,
             "resolved_tx": resolved_tx, "spatial_tx": spatial_tx, "reflection_tx": reflection_tx,
             "history_count_tx": history_count_tx}, blocks
-
-
-CONVERGENCE_TILE = 16  # pixels: each tile this size counts alike in the change
-
-
-def relative_change(before, after, tile=CONVERGENCE_TILE):
-    """Change of premultiplied reflected radiance from BEFORE to AFTER as a share of its level,
-    per TILE x TILE tile that mostly reflects, averaged over those tiles: a small glossy object
-    counts as much as a large floor that converged long ago (a mean over pixels would call the
-    still converged while the object is still noisy)."""
-    reflecting = (before[..., 3] > 0) | (after[..., 3] > 0)
-    # Channel by channel: summing the last axis of a strided RGB view is several times slower.
-    difference, magnitude = np.abs(after - before), np.abs(after)
-    change = (difference[..., 0] + difference[..., 1] + difference[..., 2]) * reflecting
-    level = (magnitude[..., 0] + magnitude[..., 1] + magnitude[..., 2]) * reflecting
-    height, width = reflecting.shape
-    rows, columns = np.arange(0, height, tile), np.arange(0, width, tile)
-
-    def tile_sums(values):  # edge tiles are partial
-        return np.add.reduceat(np.add.reduceat(values, rows, axis=0, dtype=np.float64), columns, axis=1)
-    pixels = np.outer(np.diff(np.append(rows, height)), np.diff(np.append(columns, width)))
-    share = tile_sums(reflecting) / pixels
-    level_sum, change_sum = tile_sums(level), tile_sums(change)
-    counted = (share >= 0.25) & (level_sum > 0)
-    if not counted.any():
-        return 0.0
-    return float((change_sum[counted] / level_sum[counted]).mean())

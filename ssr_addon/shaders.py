@@ -18,6 +18,7 @@ DFG_SAMPLES = 4096  # points per texel: within 0.015 of a 32768-point table even
 # Share of the GGX lobe's visible normals, the outermost, that rays never sample (trace.glsl);
 # the resolve bounds each ray's cone by the lobe that is left.
 LOBE_TAIL = 0.02
+CONVERGENCE_TILE = 16  # pixels: each tile this size counts alike in the convergence check
 
 
 @dataclass(frozen=True)
@@ -63,6 +64,9 @@ PASSES = {
     "composite": PassDeclaration("composite.glsl", ("combined_tx", "specular_color_tx", "specular_indirect_tx",
                                                     "reflection_tx", "f0_tx", "dfg_tx", "depth_tx", "normal_tx",
                                                     "roughness_tx"), ("final_img",)),
+    "convergence_tiles": PassDeclaration("convergence_tiles.glsl", ("before_tx", "after_tx"), ("tiles_img",),
+                                         libraries=(), defines=(("CONVERGENCE_TILE", str(CONVERGENCE_TILE)),),
+                                         uses_params=False),
 }
 
 

@@ -122,3 +122,30 @@ def test_a_still_accumulates_until_converged(spheres):
     assert fixed_iterations == 4 and distance(fixed) > threshold, "the scene must need more than 4 iterations"
     assert 4 < iterations < 256
     assert distance(adaptive) <= 1.5 * threshold
+
+
+def test_convergence_check_measures_the_change_per_reflecting_tile(gpu_backend):
+    """The GPU tile sums (convergence.ConvergenceCheck) on changes whose answer is known: every
+    tile counts alike, pixels that reflect at neither check do not count, and there is nothing
+    to compare with on the first check, after forget() or when the size changes."""
+    from ssr_addon.convergence import ConvergenceCheck
+    from ssr_addon.gpu_backend import TexturePool, upload
+    pool, check = TexturePool(), ConvergenceCheck()
+    height, width = 20, 40  # 3 x 2 tiles of 16 pixels, the last column and row partial
+    steady = np.ones((height, width, 4), np.float32)
+
+    def change(image):
+        return check.change(upload(image), pool)
+    assert change(steady) is None
+    assert change(1.1 * steady) == pytest.approx(0.1 / 1.1, rel=1e-5)  # a uniform 10 % change
+    object_moved = 1.1 * steady
+    object_moved[height - 16:, :16, :3] *= 1.5  # one full tile (tiles count from the bottom-left)
+    assert change(object_moved) == pytest.approx((0.5 / 1.5) / 6, rel=1e-5)
+    hole = object_moved.copy()
+    hole[:, 16:32] = 0.0                        # the middle tiles reflect at neither check ...
+    sparse = hole.copy()
+    sparse[height - 1, 16, :] = 5.0             # ... but for one pixel, under a quarter of its tile
+    check.forget()
+    assert change(hole) is None
+    assert change(sparse) == pytest.approx(0.0, abs=1e-6)  # the other four tiles did not move
+    assert check.change(upload(steady[:, :32]), pool) is None  # another size: no yardstick

@@ -19,6 +19,6 @@ from .metrics import flip_error, reflective_mask, relative_mae
 from .readme import update_readme
 from .references import DEFAULT_CACHE, REFERENCE_SAMPLES, render_reference
 from .run import DEFAULT_FRAMES, DEFAULT_RESOLUTION, DEFAULT_SCENES, EEVEE_SAMPLES, options_from_arguments, run_bench
-from .speed import copy_pass_ms
+from .speed import copy_pass_ms, queued_copy_pass_ms
 from .stability import (ENERGY_TOLERANCE, FALLBACK_MARGIN, FLICKER_LIMIT, SEAM_LIMIT, STABILITY_FRAMES, energy_excess,
                         evaluate_case, flicker, seam_strength, stability_cases)

@@ -24,5 +24,21 @@ def copy_pass_ms(size, repeats=COPY_PASS_REPEATS):
     return statistics.median(samples)
 
 
+def queued_copy_pass_ms(size, count=COPY_PASS_REPEATS):
+    """Milliseconds per copy pass at SIZE when COUNT copies are queued and waited for once: the
+    GPU's throughput, without the wait for each pass that copy_pass_ms includes (about half a
+    millisecond on a discrete GPU, far more than the copy itself)."""
+    ensure_backend()
+    source, target = empty_texture(size), empty_texture(size)
+    copy = get_pass("copy")
+    copy.draw([target], samplers=(("source_tx", source),))  # warm-up
+    timer = StageTimer()
+    timer.lap("idle", target)
+    for _ in range(count):
+        copy.draw([target], samplers=(("source_tx", source),))
+    timer.lap("copies", target)
+    return timer.milliseconds["copies"] / count
+
+
 def _size_label(size):
     return f"{size[0]}x{size[1]}"

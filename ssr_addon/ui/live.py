@@ -28,10 +28,14 @@ def draw_session(session):
     texture = session.texture
     if texture is None:
         return False
-    gpu.state.blend_set("NONE")
-    draw_texture_2d(texture, (0, 0), session.region.width, session.region.height,
-                    is_scene_linear_with_rec709_srgb_target=True)
+    draw_image(texture, session.region.width, session.region.height)
     return True
+
+
+def draw_image(texture, width, height):
+    """Draw the scene-linear TEXTURE over WIDTH x HEIGHT pixels of the bound framebuffer."""
+    gpu.state.blend_set("NONE")
+    draw_texture_2d(texture, (0, 0), width, height, is_scene_linear_with_rec709_srgb_target=True)
 
 
 def draw_live():
