@@ -121,8 +121,8 @@ class FullscreenPass:
         self.name = name
 
     def draw(self, targets, samplers=(), uniform_blocks=(), constants=(), region=None):
-        """Render into TARGETS (textures of one size); samplers, blocks and int-vector
-        constants are (name, value) pairs; REGION (x, y, width, height) limits the draw.
+        """Render into TARGETS (textures of one size); samplers, blocks and constants (int
+        vectors, or floats) are (name, value) pairs; REGION (x, y, width, height) limits the draw.
 
         A texture may not be both sampled and drawn into: OpenGL leaves that undefined.
         """
@@ -139,7 +139,10 @@ class FullscreenPass:
             for name, block in uniform_blocks:
                 self.shader.uniform_block(name, block)
             for name, value in constants:
-                self.shader.uniform_int(name, value)
+                if isinstance(value, float):
+                    self.shader.uniform_float(name, value)
+                else:
+                    self.shader.uniform_int(name, value)
             self.batch.draw(self.shader)
 
 

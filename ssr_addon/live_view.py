@@ -11,7 +11,9 @@ reads bpy.context: the caller hands in the scene and the time.
   the image refines until it stops where a still render stops.
 - Any change restarts it: the history belongs to one view.
 The comparison modes (SSR, cubemap, planar, none) and the debug views apply as in
-renders: a baseline mode shows EEVEE's own image with the baseline set up.
+renders: a baseline mode shows EEVEE's own image with the baseline set up. Images are shown
+through the scene's colour management (display_lut), as the 3D View shows EEVEE's; debug
+views, which are data, with the plain sRGB curve.
 """
 import time
 from dataclasses import astuple
@@ -20,6 +22,7 @@ import numpy as np
 
 from .baselines import apply_baseline
 from .compositor import debug_pixels
+from .display_lut import DisplayTransform, view_settings_key
 from .errors import SSRError
 from .gpu_backend import StageTimer, TexturePool, upload
 from .overrides import TemporaryChanges
@@ -48,8 +51,10 @@ class LiveSession:
         self._captured = False       # the current view has been captured
         self._view = None            # its ProgressiveView (None in a baseline mode)
         self._passes = None
-        self._texture = None         # what draw shows
-        self._shown_debug_view = None
+        self.display = DisplayTransform()
+        self._image = None           # what draw shows, scene linear: (texture, through the view transform)
+        self._texture = None         # the same, display encoded
+        self._shown = None           # (debug view, colour management) of what is shown
         self._capture_ms = 0.0
         self.status = "SSR live: waiting for the view to hold still"
 
@@ -94,7 +99,7 @@ class LiveSession:
             self._key, self._seen_version = key, self.scene_version
             self._changed_at, self._captured, self._view = now, False, None
             changed = self._texture is not None
-            self._texture = None
+            self._texture = self._image = None
             self.status = "SSR live: waiting for the view to hold still"
             return changed
         if not self._captured:
@@ -102,10 +107,10 @@ class LiveSession:
                 return False
             self._start(scene)
             return True
-        if self._view is None:
-            return False
+        if self._view is None:  # a baseline mode's still image
+            return self._redisplay(scene)
         if self._view.done:
-            if self._shown_debug_view == scene.ssr.debug_view:
+            if self._shown == self._look(scene):
                 return False
             self._show(scene, self._view.outputs)
         else:
@@ -128,7 +133,8 @@ class LiveSession:
                 projection = np.array(self.region_3d.window_matrix)
                 view_layer = rendered_view_layer(scene)
                 if mode != "SSR" or not chain.use_ssr:  # nothing to refine: EEVEE's own image, baseline applied
-                    self._texture = upload(self.capture.combined(scene, view_layer, view, projection, size))
+                    combined = upload(self.capture.combined(scene, view_layer, view, projection, size))
+                    self._display(scene, combined, view_transform=True)
                     self.status = f"SSR live: {mode.lower()}, EEVEE's own image"
                     return
                 passes = self.capture.capture(scene, view_layer, view, projection, size, self._clip(scene),
@@ -145,15 +151,30 @@ class LiveSession:
             return scene.camera.data.clip_start, scene.camera.data.clip_end
         return self.space.clip_start, self.space.clip_end
 
+    def _look(self, scene):
+        """What decides how the shown image looks, besides the image itself."""
+        return scene.ssr.debug_view, view_settings_key(scene), scene.view_settings.exposure
+
+    def _display(self, scene, image_tx, view_transform):
+        self._image = image_tx, view_transform
+        self._texture = self.display.apply(scene, image_tx, self.pool, view_transform)
+        self._shown = self._look(scene)
+
+    def _redisplay(self, scene):
+        """Show the same image again if the colour management changed; returns whether it did."""
+        if self._image is None or self._shown == self._look(scene):
+            return False
+        self._display(scene, *self._image)
+        return True
+
     def _show(self, scene, outputs):
         view = self._view
         debug_view = scene.ssr.debug_view
         if debug_view == "FINAL":
-            self._texture = outputs.final_tx
+            self._display(scene, outputs.final_tx, view_transform=True)
         else:
             images = dict(chain_images(self._passes, outputs, view.settings), passes=self._passes)
-            self._texture = upload(debug_pixels(images, debug_view))
-        self._shown_debug_view = debug_view
+            self._display(scene, upload(debug_pixels(images, debug_view)), view_transform=False)
         chain_ms = sum(view.timer.milliseconds.values())
         state = "converged" if view.done else "refining"
         self.status = (f"SSR live: {view.iterations} iterations, {state}; capture {self._capture_ms:.0f} ms, "
@@ -162,5 +183,6 @@ class LiveSession:
     def release(self):
         self.capture.release()
         self.pool.release()
-        self._view = self._texture = self._passes = None
+        self.display.release()
+        self._view = self._texture = self._image = self._passes = None
 

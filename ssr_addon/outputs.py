@@ -64,15 +64,15 @@ def write_rgba_exr(path, rgba):
     write_exr(path, {name: rgba[..., index] for index, name in enumerate("RGBA")})
 
 
-def write_display_png(path, rgba, scene):
-    """8-bit PNG through the scene's view transform, look, exposure and gamma (as F12 saves it)."""
+def write_display_png(path, rgba, scene, color_depth="8"):
+    """PNG (8 or 16 bits) through the scene's view transform, look, exposure and gamma (as F12 saves it)."""
     height, width = rgba.shape[:2]
     image = bpy.data.images.new("ssr_display", width, height, alpha=True, float_buffer=True)
     try:
         image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], dtype=np.float32).ravel())
         with TemporaryChanges() as changes:
             changes.set_all(scene.render.image_settings, media_type="IMAGE", file_format="PNG",
-                            color_mode="RGBA", color_depth="8")
+                            color_mode="RGBA", color_depth=color_depth)
             image.save_render(path, scene=scene)
     except RuntimeError as error:
         raise SSRError(f"cannot write {path}: {str(error).strip()}") from None

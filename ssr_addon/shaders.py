@@ -19,17 +19,22 @@ DFG_SAMPLES = 4096  # points per texel: within 0.015 of a 32768-point table even
 # the resolve bounds each ray's cone by the lobe that is left.
 LOBE_TAIL = 0.02
 CONVERGENCE_TILE = 16  # pixels: each tile this size counts alike in the convergence check
+LUT_SIZE = 65                             # display LUT lattice points per channel (display_lut.py)
+# Stops of scene-linear light the display LUT spans (its first point is 0). 1.0, where the
+# Standard view clips, falls on a lattice point: interpolating across that bend costs 5 steps.
+LUT_LOG2_MIN, LUT_LOG2_MAX = -15.0, 9.0
 
 
 @dataclass(frozen=True)
 class PassDeclaration:
     source: str                 # the pass's GLSL file
-    samplers: tuple
+    samplers: tuple             # 2D textures; volume_samplers are 3D
     outputs: tuple
     libraries: tuple = ("common_lib.glsl",)
     defines: tuple = ()         # (name, value)
     push_constants: tuple = ()  # (type, name)
     uses_params: bool = True
+    volume_samplers: tuple = ()
 
 
 _TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "linear_march_lib.glsl",
@@ -67,6 +72,12 @@ PASSES = {
     "convergence_tiles": PassDeclaration("convergence_tiles.glsl", ("before_tx", "after_tx"), ("tiles_img",),
                                          libraries=(), defines=(("CONVERGENCE_TILE", str(CONVERGENCE_TILE)),),
                                          uses_params=False),
+    "display_transform": PassDeclaration("display_transform.glsl", ("image_tx",), ("display_img",), libraries=(),
+                                         defines=(("LUT_SIZE", f"{LUT_SIZE}.0"), ("LUT_LOG2_MIN", repr(LUT_LOG2_MIN)),
+                                                  ("LUT_LOG2_MAX", repr(LUT_LOG2_MAX))),
+                                         push_constants=(("INT", "use_view_transform"), ("FLOAT", "exposure_scale")),
+                                         uses_params=False,
+                                         volume_samplers=("lut_tx",)),
 }
 
 
@@ -90,6 +101,8 @@ def get_pass(name):
             info.push_constant(kind, constant)
         for slot, sampler in enumerate(declaration.samplers):
             info.sampler(slot, "FLOAT_2D", sampler)
+        for slot, sampler in enumerate(declaration.volume_samplers, len(declaration.samplers)):
+            info.sampler(slot, "FLOAT_3D", sampler)
         for slot, output in enumerate(declaration.outputs):
             info.fragment_out(slot, "VEC4", output)
     source = "".join(glsl_source(library) for library in declaration.libraries) + glsl_source(declaration.source)

@@ -20,7 +20,7 @@ from ssr_addon.scene_io import load_scene
 from ssr_addon.ui import live
 from ssr_addon.viewport_capture import headless_view3d
 
-from conftest import SCENES, read_exr, rgb, run_cli
+from conftest import SCENES, blender_display, read_exr, rgb, run_cli
 
 RESOLUTION = "160x90"
 
@@ -88,6 +88,7 @@ def _tick_until(session, scene, clock, condition, limit=400):
 
 
 def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view):
+    from ssr_addon.gpu_backend import download
     scene, space, region = live_view
     session = LiveSession(space, region, space.region_3d)
     clock = [0.0]
@@ -100,15 +101,23 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
     assert seen == sorted(seen) and seen[-1] > seen[0]
     assert "converged" in session.status and f"{seen[-1]} iterations" in session.status
     assert session.tick(scene, now=clock[0] + 1) is False  # converged: nothing more to draw
-    assert session.texture is first_image  # the pool's final texture, redrawn in place
+    assert session.texture is first_image  # the pool's display texture, redrawn in place
+    converged = download(session.texture)
 
     scene.ssr.debug_view = "CONFIDENCE"  # another look at the same iterations: no new capture
     try:
         assert session.tick(scene, now=clock[0] + 1.5) is True
-        assert session.texture is not first_image and session._view.iterations == seen[-1]
+        assert not np.allclose(download(session.texture), converged) and session._view.iterations == seen[-1]
     finally:
         scene.ssr.debug_view = "FINAL"
-    assert session.tick(scene, now=clock[0] + 1.6) is True and session.texture is first_image
+    assert session.tick(scene, now=clock[0] + 1.6) is True and np.allclose(download(session.texture), converged)
+
+    scene.view_settings.exposure += 1.0  # the colour management: shown anew, not recaptured
+    try:
+        assert session.tick(scene, now=clock[0] + 1.7) is True and session._view.iterations == seen[-1]
+        assert download(session.texture)[..., :3].mean() > converged[..., :3].mean()
+    finally:
+        scene.view_settings.exposure -= 1.0
 
     space.region_3d.view_location += mathutils.Vector((0.2, 0.0, 0.0))  # orbiting: the history is the old view's
     assert session.tick(scene, now=clock[0] + 2) is True
@@ -125,14 +134,15 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
         session.release()
 
 
-def test_the_draw_handler_draws_the_sessions_image(live_view):
+def test_the_draw_handler_draws_the_sessions_image(live_view, tmp_path):
+    """The handler's body draws the session's image as Blender's colour management shows it."""
     import gpu
     from ssr_addon.gpu_backend import download, upload
     scene, space, region = live_view
     session = LiveSession(space, region, space.region_3d)
     red = np.zeros((region.height, region.width, 4), np.float32)
     red[..., 0], red[..., 3] = 0.5, 1.0
-    session._texture = upload(red)
+    session._display(scene, upload(red), view_transform=True)
     offscreen = gpu.types.GPUOffScreen(region.width, region.height, format="RGBA32F")
     with offscreen.bind(), gpu.matrix.push_pop(), gpu.matrix.push_pop_projection():
         gpu.matrix.load_identity()  # pixel space, as a POST_PIXEL handler has it
@@ -141,8 +151,8 @@ def test_the_draw_handler_draws_the_sessions_image(live_view):
         assert live.draw_session(session)
     drawn = download(offscreen.texture_color)
     offscreen.free()
-    srgb_half = 1.055 * 0.5 ** (1 / 2.4) - 0.055  # scene linear 0.5 on an sRGB display
-    assert np.allclose(drawn[..., 0], srgb_half, atol=0.01) and np.allclose(drawn[..., 1:3], 0.0, atol=0.01)
+    expected = blender_display(scene, red[:1, :1], str(tmp_path))[0, 0]  # the scene's view transform (AgX)
+    assert np.allclose(drawn[..., :3], expected, atol=1.5 / 255)
     session._texture = None
     assert not live.draw_session(session)
 

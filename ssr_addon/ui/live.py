@@ -33,9 +33,10 @@ def draw_session(session):
 
 
 def draw_image(texture, width, height):
-    """Draw the scene-linear TEXTURE over WIDTH x HEIGHT pixels of the bound framebuffer."""
+    """Draw the display-encoded TEXTURE (live_view.LiveSession.texture) over WIDTH x HEIGHT pixels
+    of the bound framebuffer."""
     gpu.state.blend_set("NONE")
-    draw_texture_2d(texture, (0, 0), width, height, is_scene_linear_with_rec709_srgb_target=True)
+    draw_texture_2d(texture, (0, 0), width, height)
 
 
 def draw_live():
