@@ -8,8 +8,9 @@ EEVEE pass render shows them:
 - planar: the scene mirrored in one plane, an EEVEE plane light probe on a
   flat mesh. EEVEE uses plane probes only with screen-trace ray tracing, so
   that is switched on; other glossy surfaces then get EEVEE's own screen trace.
-- none and ssr: the scene as it is (its world, light probes and ray tracing
-  setting), exactly what `render --method none/ssr` renders.
+- none: the scene as it is (its world, light probes and ray tracing setting),
+  exactly what `render --method none` renders. ssr: the same, rendered with
+  the ray-tracing set-up SSR composites over (passes.SSR_BASE_RAYTRACING).
 
 Everything goes through TemporaryChanges: the scene is as before on restore.
 """

@@ -18,7 +18,8 @@ from .gpu_backend import StageTimer, describe_gpu, download, ensure_backend
 from .outputs import (prepare_output_folder, write_display_png, write_exr, write_json, write_rgba_exr,
                       written_together)
 from .params import ChainSettings
-from .passes import ENGINES, lamp_split_method, lamp_world_for_run, render_passes, render_samples, render_size
+from .passes import (ENGINES, SSR_BASE_RAYTRACING, lamp_split_method, lamp_world_for_run, render_passes, render_samples,
+                     render_size)
 from .progress import FrameProgress
 from .run_report import REPORT_NAME, claim_folder, fingerprint, frame_paths, scene_identity
 from .scene_io import require_camera, require_square_pixels
@@ -27,7 +28,10 @@ from .scene_io import require_camera, require_square_pixels
 # screen tracing where the scene has ray tracing on); cycles: the path-traced reference;
 # eevee-rt / eevee-rt-high: EEVEE's own screen-space ray tracing.
 METHODS = ("ssr", "none", "cycles", "eevee-rt", "eevee-rt-high")
-EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}
+EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}  # methods that are EEVEE's own
+# The EEVEE ray-tracing set-up (passes.EEVEE_RAYTRACING) each method renders with; "none" and
+# the baselines render the scene's own.
+RENDER_RAYTRACING = {**EEVEE_RAYTRACING_METHODS, "ssr": SSR_BASE_RAYTRACING}
 # Frames re-rendered (not written) before the first missing frame of a resumed run, so
 # its temporal history is as warm as an uninterrupted run's (the filter averages ~10).
 # The frame sequence draws a frame's random numbers from its number alone, so the
@@ -104,7 +108,7 @@ def render_frame(scene, request, state=None):
     timer = StageTimer()
     use_ssr = request.method == "ssr" and request.settings.use_ssr
     passes = render_passes(scene, request.engine, request.samples, request.resolution,
-                           EEVEE_RAYTRACING_METHODS.get(request.method),
+                           RENDER_RAYTRACING.get(request.method),
                            lamp_split=request.settings.lamp_split if use_ssr else "off", timer=timer)
     timer.lap("render")  # reading the passes back
     images = {"passes": passes, "final": passes.combined, "stats": {}}

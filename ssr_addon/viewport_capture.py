@@ -22,7 +22,8 @@ from .errors import SSRError
 from .gpu_backend import download, lap
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
-from .passes import (frame_passes, has_lamps, lamp_split_method, lamps_alone, split_eevee_specular)
+from .passes import (SSR_BASE_RAYTRACING, frame_passes, has_lamps, lamp_split_method, lamps_alone,
+                     split_eevee_specular, use_eevee_raytracing)
 
 # Shadings whose viewport draw is EEVEE's and has render passes.
 CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
@@ -58,6 +59,7 @@ class ViewportCapture:
         view, projection = _matrix(view_matrix), _matrix(projection_matrix)
         with TemporaryChanges() as changes:
             self._prepare(scene, size, changes)
+            use_eevee_raytracing(scene, SSR_BASE_RAYTRACING, changes)
             warnings = add_material_aovs(scene, view_layer, changes)
             view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
             wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if lamp_split == "unshadowed" else {}))
