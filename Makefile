@@ -40,7 +40,7 @@ crops: $(STAMP)
 	$(PY) benchmarks/still_crops.py --scenes mirror_floor wet_street --readme README.md
 
 bench-chain: $(STAMP)
-	$(PY) benchmarks/chain_stages.py
+	$(PY) benchmarks/chain_stages.py --readme README.md
 
 bench-memory: $(STAMP)
 	$(PY) benchmarks/batch_memory.py

@@ -1,6 +1,6 @@
 """Per-stage milliseconds of the SSR chain at 1600x900, as multiples of a full-screen copy.
 
-    .venv/bin/python benchmarks/chain_stages.py [--frames N] [--preset NAME ...]
+    .venv/bin/python benchmarks/chain_stages.py [--frames N] [--preset NAME ...] [--readme README.md [--block NAME]]
 
 Each preset runs N frames of a still shot (after the first, each settles in an iteration or two);
 the table gives the median per stage. The copy pass is measured in the same run.
@@ -16,7 +16,8 @@ from common import SIZE, upscaled_passes
 
 from ssr_addon.bench import copy_pass_ms, queued_copy_pass_ms
 from ssr_addon.chain import ChainInputs, ChainState, run_chain
-from ssr_addon.gpu_backend import StageTimer
+from ssr_addon.gpu_backend import StageTimer, describe_gpu
+from ssr_addon.outputs import rewrite_readme_block
 from ssr_addon.params import PRESETS, preset
 
 STAGES = ("hiz", "color_pyramid", "trace", "resolve", "spatial", "temporal", "convergence", "composite")
@@ -26,9 +27,10 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=8)
     parser.add_argument("--preset", nargs="+", default=list(PRESETS))
+    parser.add_argument("--readme", help="rewrite a block of this README with the tables")
+    parser.add_argument("--block", default="chain", help="the README block to rewrite (default: chain)")
     arguments = parser.parse_args()
     _, passes = upscaled_passes()
-    print(f"inputs: {SIZE[0]}x{SIZE[1]}")
     rows, queued = [], {}
     for name in arguments.preset:
         settings = preset(name)
@@ -46,16 +48,21 @@ def main():
         rows.append((name, {stage: statistics.median(values) for stage, values in timings.items()}))
         queued[name] = queued_frame_ms(inputs, settings, state, arguments.frames)
     copy_ms = copy_pass_ms(SIZE)
-    print(f"full-screen copy pass: {copy_ms:.2f} ms\n")
-    print(f"{'preset':<10}" + "".join(f"{stage:>15}" for stage in STAGES) + f"{'total':>15}")
+    queued_copy_ms = queued_copy_pass_ms(SIZE)
+    lines = [f"$ make bench-chain    # on {describe_gpu()['renderer']}", f"inputs: {SIZE[0]}x{SIZE[1]}",
+             f"full-screen copy pass: {copy_ms:.2f} ms", "",
+             f"{'preset':<10}" + "".join(f"{stage:>15}" for stage in STAGES) + f"{'total':>15}"]
     for name, medians in rows:
         total = sum(medians.values())
-        cells = "".join(f"{ms:8.1f} ({ms / copy_ms:4.1f}x)" for ms in medians.values())
-        print(f"{name:<10}{cells}{total:8.1f} ({total / copy_ms:4.1f}x)")
-    queued_copy_ms = queued_copy_pass_ms(SIZE)
-    print(f"\nqueued, one wait per run: copy pass {queued_copy_ms:.3f} ms")
-    for name, frame_ms in queued.items():
-        print(f"{name:<10}{frame_ms:8.2f} ms per frame ({frame_ms / queued_copy_ms:5.1f}x)")
+        cells = "".join(f"{ms:8.2f} ({ms / copy_ms:4.1f}x)" for ms in medians.values())
+        lines.append(f"{name:<10}{cells}{total:8.2f} ({total / copy_ms:5.1f}x)")
+    lines += ["", f"queued, one wait per run: copy pass {queued_copy_ms:.3f} ms"]
+    lines += [f"{name:<10}{frame_ms:8.2f} ms per frame ({frame_ms / queued_copy_ms:5.1f}x)"
+              for name, frame_ms in queued.items()]
+    text = "\n".join(lines)
+    print(text)
+    if arguments.readme:
+        rewrite_readme_block(arguments.readme, arguments.block, f"```\n{text}\n```", "Benchmarks")
 
 
 def queued_frame_ms(inputs, settings, state, frames):

@@ -64,7 +64,8 @@ def overlay_draw_ms(scene, size, repeats=20):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=[(320, 180), (1280, 720)])
-    parser.add_argument("--readme", help="rewrite the live block of this README")
+    parser.add_argument("--readme", help="rewrite a block of this README with the table")
+    parser.add_argument("--block", default="live", help="the README block to rewrite (default: live)")
     arguments = parser.parse_args()
     rows = [measure(resolution) for resolution in arguments.resolutions]
     ensure_backend()
@@ -88,7 +89,7 @@ def main():
     text = "\n".join(lines)
     print(text)
     if arguments.readme:
-        rewrite_readme_block(arguments.readme, "live", text, "Live SSR in the viewport")
+        rewrite_readme_block(arguments.readme, arguments.block, text, "Live SSR in the viewport")
 
 
 if __name__ == "__main__":
