@@ -53,7 +53,7 @@ def readme_block(report, out_dir, readme_dir):
         f"Latest run: `python -m ssr_addon bench --scenes {' '.join(report['scenes'])} "
         f"--resolution {width}x{height} --out {folder} --readme README.md{_contenders_argument(report)}` on "
         f"Blender {report['blender']}, "
-        f"{report['gpu']['renderer']}: a software GPU, so every engine render is slow. Reference: Cycles, "
+        f"{report['gpu']['renderer']}{_gpu_note(report['gpu']['renderer'])}. Reference: Cycles, "
         f"{report['reference']['samples']} samples; EEVEE: {report['eevee_samples']} samples. Time: wall time "
         f"per frame of the whole method, engine render included; *add-on ms*: our own share of it, everything "
         f"but the engine's render (in scenes with lamps SSR needs a second, lamp-only render: `lamp_split`, "
@@ -113,6 +113,10 @@ def readme_block(report, out_dir, readme_dir):
 
 def _cell(value, digits):
     return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _gpu_note(renderer):
+    return ": a software GPU, so every engine render is slow" if "llvmpipe" in renderer.lower() else ""
 
 
 def update_readme(readme_path, report, out_dir):
