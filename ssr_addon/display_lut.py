@@ -36,24 +36,32 @@ def lattice_values():
     return values
 
 
+def blender_display(scene, rgba):
+    """RGBA (scene linear, image order) as Blender's colour management shows it in SCENE: written
+    undithered through `save_render` into a 16-bit PNG and read back, (H, W, 3) display encoded."""
+    with tempfile.TemporaryDirectory(prefix="ssr_display_") as folder:
+        path = os.path.join(folder, "display.png")
+        with TemporaryChanges() as changes:
+            changes.set(scene.render, "dither_intensity", 0.0)  # its noise would be read back
+            write_display_png(path, rgba, scene, color_depth="16")
+        source = oiio.ImageInput.open(path)
+        if source is None:
+            raise SSRError(f"cannot read back the colour-managed image: {oiio.geterror()}")
+        display = source.read_image("float")
+        source.close()
+    return np.asarray(display, np.float32)[..., :3]
+
+
 def bake_display_lut(scene):
-    """(LUT_SIZE,) * 3 + (4,) display-encoded colours indexed [blue][green][red], through SCENE's
+    """(LUT_SIZE,) * 3 + (3,) display-encoded colours indexed [blue][green][red], through SCENE's
     colour management at exposure 0."""
     values = lattice_values().astype(np.float32)
     blue, green, red = np.meshgrid(values, values, values, indexing="ij")
     lattice = np.stack([red, green, blue, np.ones_like(red)], axis=-1).reshape(LUT_SIZE * LUT_SIZE, LUT_SIZE, 4)
-    with tempfile.TemporaryDirectory(prefix="ssr_lut_") as folder:
-        path = os.path.join(folder, "lut.png")
-        with TemporaryChanges() as changes:
-            changes.set(scene.render, "dither_intensity", 0.0)  # noise would be baked in
-            changes.set(scene.view_settings, "exposure", 0.0)   # applied in the shader
-            write_display_png(path, lattice, scene, color_depth="16")
-        source = oiio.ImageInput.open(path)
-        if source is None:
-            raise SSRError(f"cannot read the baked view transform: {oiio.geterror()}")
-        display = source.read_image("float")
-        source.close()
-    return np.asarray(display, np.float32).reshape(LUT_SIZE, LUT_SIZE, LUT_SIZE, -1)
+    with TemporaryChanges() as changes:
+        changes.set(scene.view_settings, "exposure", 0.0)  # applied in the shader
+        display = blender_display(scene, lattice)
+    return display.reshape(LUT_SIZE, LUT_SIZE, LUT_SIZE, 3)
 
 
 class DisplayTransform:
@@ -68,7 +76,7 @@ class DisplayTransform:
         key = view_settings_key(scene)
         if key != self._key:
             colours = bake_display_lut(scene)
-            rgba = np.concatenate([colours[..., :3], np.ones(colours.shape[:3] + (1,), np.float32)], axis=-1)
+            rgba = np.concatenate([colours, np.ones(colours.shape[:3] + (1,), np.float32)], axis=-1)
             data = gpu.types.Buffer("FLOAT", rgba.size, np.ascontiguousarray(rgba).ravel())
             self._lut_tx = gpu.types.GPUTexture((LUT_SIZE,) * 3, format="RGBA16F", data=data)
             self._key = key

@@ -31,22 +31,6 @@ def read_exr(path):
     return read_channels(str(path))
 
 
-def blender_display(scene, rgba, folder):
-    """RGBA (scene linear, image order) through Blender's own colour management: a 16-bit PNG
-    written by save_render, undithered, read back as display-encoded RGB."""
-    import OpenImageIO as oiio
-    from ssr_addon.outputs import write_display_png
-    from ssr_addon.overrides import TemporaryChanges
-    path = os.path.join(folder, "blender_display.png")
-    with TemporaryChanges() as changes:
-        changes.set(scene.render, "dither_intensity", 0.0)
-        write_display_png(path, rgba, scene, color_depth="16")
-    source = oiio.ImageInput.open(path)
-    pixels = source.read_image("float")
-    source.close()
-    return pixels[..., :3]
-
-
 def rgb(channels, layer=None):
     from ssr_addon.bench import layer_rgb
     return layer_rgb(channels, layer)

@@ -4,7 +4,6 @@ writes it, for the view transforms, looks and exposures artists use."""
 import numpy as np
 import pytest
 
-from conftest import blender_display
 
 
 def hdr_colours(spread, size=(64, 48), seed=3):
@@ -30,17 +29,17 @@ EXTREME = dict(spread=10.0, mean=0.25, tail=4.0, worst=8.0)
 @pytest.mark.parametrize("colours", [REALISTIC, EXTREME], ids=["realistic", "extreme"])
 @pytest.mark.parametrize("view_transform, look, exposure", [
     ("AgX", "None", 0.0), ("AgX", "AgX - Punchy", 1.5), ("Filmic", "None", -1.0), ("Standard", "None", 0.5)])
-def test_overlay_colours_match_blender_colour_management(gpu_backend, tmp_path, view_transform, look, exposure,
+def test_overlay_colours_match_blender_colour_management(gpu_backend, view_transform, look, exposure,
                                                          colours):
     import bpy
-    from ssr_addon.display_lut import DisplayTransform
+    from ssr_addon.display_lut import DisplayTransform, blender_display
     from ssr_addon.gpu_backend import TexturePool, download, upload
     from ssr_addon.overrides import TemporaryChanges
     scene = bpy.context.scene
     rgba = hdr_colours(colours["spread"])
     with TemporaryChanges() as changes:
         changes.set_all(scene.view_settings, view_transform=view_transform, look=look, exposure=exposure)
-        expected = blender_display(scene, rgba, str(tmp_path))
+        expected = blender_display(scene, rgba)
         shown = download(DisplayTransform().apply(scene, upload(rgba), TexturePool()))[..., :3]
     error = np.abs(shown - expected) * 255
     tail = np.percentile(error, 99.9)

@@ -14,13 +14,15 @@ import numpy as np
 import pytest
 
 import ssr_addon
+from ssr_addon.display_lut import blender_display
 from ssr_addon.errors import SSRError
 from ssr_addon.live_view import DEBOUNCE_S, LiveSession
+from ssr_addon.overrides import TemporaryChanges
 from ssr_addon.scene_io import load_scene
 from ssr_addon.ui import live
 from ssr_addon.viewport_capture import headless_view3d
 
-from conftest import SCENES, blender_display, read_exr, rgb, run_cli
+from conftest import SCENES, read_exr, rgb, run_cli
 
 RESOLUTION = "160x90"
 
@@ -134,7 +136,7 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
         session.release()
 
 
-def test_the_draw_handler_draws_the_sessions_image(live_view, tmp_path):
+def test_the_draw_handler_draws_the_sessions_image(live_view):
     """The handler's body draws the session's image as Blender's colour management shows it."""
     import gpu
     from ssr_addon.gpu_backend import download, upload
@@ -151,7 +153,7 @@ def test_the_draw_handler_draws_the_sessions_image(live_view, tmp_path):
         assert live.draw_session(session)
     drawn = download(offscreen.texture_color)
     offscreen.free()
-    expected = blender_display(scene, red[:1, :1], str(tmp_path))[0, 0]  # the scene's view transform (AgX)
+    expected = blender_display(scene, red[:1, :1])[0, 0]  # the scene's view transform (AgX)
     assert np.allclose(drawn[..., :3], expected, atol=1.5 / 255)
     session._texture = None
     assert not live.draw_session(session)
@@ -160,18 +162,12 @@ def test_the_draw_handler_draws_the_sessions_image(live_view, tmp_path):
 def test_a_view_the_capture_cannot_use_stops_with_a_message(live_view):
     scene, space, region = live_view
     session = LiveSession(space, region, space.region_3d)
-    space.shading.type = "SOLID"
-    try:
-        with pytest.raises(SSRError, match="Material Preview or Rendered"):
-            session.tick(scene)
-    finally:
-        space.shading.type = "RENDERED"
-    scene.render.engine = "CYCLES"
-    try:
-        with pytest.raises(SSRError, match="EEVEE"):
-            session.tick(scene)
-    finally:
-        scene.render.engine = "BLENDER_EEVEE"
+    for struct, name, value, message in ((space.shading, "type", "SOLID", "Material Preview or Rendered"),
+                                         (scene.render, "engine", "CYCLES", "EEVEE")):
+        with TemporaryChanges() as changes:
+            changes.set(struct, name, value)
+            with pytest.raises(SSRError, match=message):
+                session.tick(scene)
 
 
 def test_a_failing_draw_is_a_message_and_the_view_is_restored(live_view):
