@@ -49,59 +49,118 @@ PARAMS_FIELDS = (
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
 )
 
+# Lights of lamp_split=analytic (analytic_lamps.py, lamp_specular.glsl); a scene with more
+# renders its lamp split instead.
+MAX_LAMPS = 64
+
+LAMP_FIELDS = (
+    ("vec3", "position", "world position; for a sun, the unit direction towards it"),
+    ("int", "shape", "SHAPE_* of lamp_specular.glsl"),
+    ("vec3", "radiance", "emitted radiance, specular factor included"),
+    ("float", "influence_radius", "local lights fade to nothing at this distance"),
+    ("vec3", "x_axis", "the light's local axes in world space (it emits along -z)"),
+    ("float", "half_width", "area lights: half the x extent; spheres, disks and suns: the radius"),
+    ("vec3", "y_axis", ""),
+    ("float", "half_height", "area lights: half the y extent"),
+    ("vec3", "z_axis", ""),
+    ("float", "spot_mul", "spot cone: smoothstep(0, 1, ellipse * spot_mul + spot_bias), as EEVEE"),
+    ("vec2", "spot_size_inv", "spot cone stretch by the object's scale"),
+    ("float", "spot_bias", ""),
+    ("int", "is_spot", "1 for spot lights"),
+)
+
+LAMP_BLOCK_FIELDS = (
+    ("mat4", "clip_to_view", "inverse camera projection"),
+    ("mat4", "view_to_world", "inverse camera view matrix"),
+    ("vec2", "viewport_size", "pixels"),
+    ("float", "background_depth", "depth at or past it is the world"),
+    ("float", "min_alpha", "GGX alpha floor"),
+    ("int", "lamp_count", "lamps in use"),
+    ("int", "strata_per_side", "each sampling strategy takes this squared stratified points"),
+    (f"LampData[{MAX_LAMPS}]", "lamps", ""),
+)
+
 # std140: (base alignment, size) in 4-byte words.
-_LAYOUT = {"float": (1, 1), "int": (1, 1), "uint": (1, 1), "vec2": (2, 2), "vec4": (4, 4), "mat4": (4, 16)}
+_LAYOUT = {"float": (1, 1), "int": (1, 1), "uint": (1, 1), "vec2": (2, 2), "vec3": (4, 3), "vec4": (4, 4),
+           "mat4": (4, 16)}
 
 
-def _layout():
-    """{name: (type, word offset, word count)} and the block's size in words."""
-    offsets, cursor = {}, 0
-    for glsl_type, name, _ in PARAMS_FIELDS:
-        base, _, count = glsl_type.partition("[")
-        alignment, size = _LAYOUT[base]
-        if count:
-            alignment, size = 4, 4 * int(count.rstrip("]"))  # array elements are vec4-aligned
-        cursor = -(-cursor // alignment) * alignment
-        offsets[name] = (base, cursor, size)
-        cursor += size
-    return offsets, -(-cursor // 4) * 4
+class Std140Struct:
+    """A GLSL struct: its declaration and the std140 bytes of {field: value}, every field required.
+
+    FIELDS are (GLSL type, name, comment); arrays as "vec4[N]" or "Struct[N]" of a struct in
+    NESTED. Matrices are given in numpy (row-major) convention and stored column-major, as
+    GLSL reads them.
+    """
+
+    def __init__(self, name, fields, nested=()):
+        self.name, self.fields = name, fields
+        self.nested = {struct.name: struct for struct in nested}
+        self.offsets, cursor = {}, 0
+        for glsl_type, field_name, _ in fields:
+            base, _, count = glsl_type.partition("[")
+            if base in self.nested:
+                alignment, size = 4, self.nested[base].words
+            else:
+                alignment, size = _LAYOUT[base]
+            if count:  # array elements are vec4-aligned
+                alignment, size = 4, -(-size // 4) * 4 * int(count.rstrip("]"))
+            cursor = -(-cursor // alignment) * alignment
+            self.offsets[field_name] = (base, cursor, size)
+            cursor += size
+        self.words = -(-cursor // 4) * 4
+
+    def glsl(self):
+        lines = [f"struct {self.name} {{"]
+        for glsl_type, name, comment in self.fields:
+            base, _, count = glsl_type.partition("[")
+            declaration = f"{base} {name}[{count}" if count else f"{glsl_type} {name}"
+            lines.append(f"  {declaration};" + (f" /* {comment} */" if comment else ""))
+        lines.append("};")
+        return "\n".join(lines) + "\n"
+
+    def pack(self, values):
+        words = np.zeros(self.words, np.uint32)
+        as_float = words.view(np.float32)
+        as_int = words.view(np.int32)
+        missing = [name for name in self.offsets if name not in values]
+        unknown = [name for name in values if name not in self.offsets]
+        if missing or unknown:
+            raise KeyError(f"{self.name}: missing {missing}, unknown {unknown}")
+        for name, value in values.items():
+            base, offset, size = self.offsets[name]
+            if base in self.nested:
+                struct = self.nested[base]
+                stride = -(-struct.words // 4) * 4
+                for index, element in enumerate(value):
+                    words[offset + index * stride:offset + index * stride + struct.words] = struct.pack(element)
+            elif base == "mat4":
+                as_float[offset:offset + size] = np.asarray(value, np.float64).T.ravel()
+            elif base == "int":
+                as_int[offset] = int(value)
+            elif base == "uint":
+                words[offset] = int(value) & 0xFFFFFFFF
+            else:
+                flat = np.asarray(value, np.float64).ravel()
+                as_float[offset:offset + flat.size] = flat
+        return words
 
 
-OFFSETS, BLOCK_WORDS = _layout()
+PARAMS = Std140Struct("SSRParams", PARAMS_FIELDS)
+LAMP_DATA = Std140Struct("LampData", LAMP_FIELDS)
+LAMP_BLOCK = Std140Struct("LampBlock", LAMP_BLOCK_FIELDS, nested=(LAMP_DATA,))
 
 
 def glsl_struct():
     """The SSRParams struct, for GPUShaderCreateInfo.typedef_source."""
-    lines = [f"#define MAX_PYRAMID_LEVELS {MAX_PYRAMID_LEVELS}", "struct SSRParams {"]
-    for glsl_type, name, comment in PARAMS_FIELDS:
-        base, _, count = glsl_type.partition("[")
-        declaration = f"{base} {name}[{count}" if count else f"{glsl_type} {name}"
-        lines.append(f"  {declaration}; /* {comment} */")
-    lines.append("};")
-    return "\n".join(lines) + "\n"
+    return f"#define MAX_PYRAMID_LEVELS {MAX_PYRAMID_LEVELS}\n" + PARAMS.glsl()
+
+
+def lamp_block_glsl():
+    """The LampData and LampBlock structs, for GPUShaderCreateInfo.typedef_source."""
+    return LAMP_DATA.glsl() + LAMP_BLOCK.glsl()
 
 
 def pack_params(values):
-    """The std140 bytes of SSRParams from {field: value}; every field is required.
-
-    Matrices are given in numpy (row-major) convention and stored column-major, as GLSL reads them.
-    """
-    words = np.zeros(BLOCK_WORDS, np.uint32)
-    as_float = words.view(np.float32)
-    as_int = words.view(np.int32)
-    missing = [name for name in OFFSETS if name not in values]
-    unknown = [name for name in values if name not in OFFSETS]
-    if missing or unknown:
-        raise KeyError(f"SSRParams: missing {missing}, unknown {unknown}")
-    for name, value in values.items():
-        base, offset, size = OFFSETS[name]
-        if base == "mat4":
-            as_float[offset:offset + size] = np.asarray(value, np.float64).T.ravel()
-        elif base == "int":
-            as_int[offset] = int(value)
-        elif base == "uint":
-            words[offset] = int(value) & 0xFFFFFFFF
-        else:
-            flat = np.asarray(value, np.float64).ravel()
-            as_float[offset:offset + flat.size] = flat
-    return words
+    """The std140 bytes of SSRParams from {field: value}; every field is required."""
+    return PARAMS.pack(values)

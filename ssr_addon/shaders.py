@@ -10,7 +10,7 @@ from dataclasses import dataclass
 
 from .frame_sequence import MAX_ITERATIONS
 from .gpu_backend import FullscreenPass
-from .gpu_params import glsl_struct
+from .gpu_params import glsl_struct, lamp_block_glsl
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "gpu_shaders")
 DFG_SIZE = 32  # the FG table's resolution in n.v and roughness
@@ -35,6 +35,7 @@ class PassDeclaration:
     push_constants: tuple = ()  # (type, name)
     uses_params: bool = True
     volume_samplers: tuple = ()
+    uses_lamp_block: bool = False  # reads `lamp_block` (gpu_params.LAMP_BLOCK) instead of `params`
 
 
 _TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "linear_march_lib.glsl",
@@ -66,6 +67,9 @@ PASSES = {
                                 defines=(("STATIC_HISTORY_FRAMES", f"{MAX_ITERATIONS}.0"),)),
     "dfg_table": PassDeclaration("dfg_table.glsl", (), ("dfg_img",), libraries=("common_lib.glsl", "ggx_lib.glsl"),
                                  defines=(("DFG_SIZE", str(DFG_SIZE)), ("DFG_SAMPLES", str(DFG_SAMPLES)))),
+    "lamp_specular": PassDeclaration("lamp_specular.glsl", ("depth_tx", "normal_tx", "roughness_tx", "albedo_tx"),
+                                     ("lamp_specular_img",), libraries=("ggx_lib.glsl",), uses_params=False,
+                                     uses_lamp_block=True),
     "composite": PassDeclaration("composite.glsl", ("combined_tx", "specular_color_tx", "specular_indirect_tx",
                                                     "reflection_tx", "f0_tx", "dfg_tx", "depth_tx", "normal_tx",
                                                     "roughness_tx"), ("final_img",)),
@@ -95,6 +99,8 @@ def get_pass(name):
     def declare(info):
         if declaration.uses_params:
             info.uniform_buf(0, "SSRParams", "params")
+        if declaration.uses_lamp_block:
+            info.uniform_buf(0, "LampBlock", "lamp_block")
         for name, value in declaration.defines:
             info.define(name, value)
         for kind, constant in declaration.push_constants:
@@ -106,7 +112,8 @@ def get_pass(name):
         for slot, output in enumerate(declaration.outputs):
             info.fragment_out(slot, "VEC4", output)
     source = "".join(glsl_source(library) for library in declaration.libraries) + glsl_source(declaration.source)
-    typedefs = glsl_struct() if declaration.uses_params else ""
+    typedefs = (glsl_struct() if declaration.uses_params else "") + \
+        (lamp_block_glsl() if declaration.uses_lamp_block else "")
     return FullscreenPass(name, source, declare, typedefs=typedefs)
 
 

@@ -2,6 +2,9 @@
  * of the resolve ("Importance Sampling: BRDF, Halton sequence" slides).
  * alpha = roughness^2, as in Blender's Principled BSDF. */
 
+#ifndef M_PI
+#  define M_PI 3.14159265358979
+#endif
 #define MIN_ALPHA 1e-3
 
 float ggx_alpha(float roughness)
@@ -78,23 +81,4 @@ float ggx_brdf_cos(vec3 n, vec3 v, vec3 l, float alpha)
   }
   vec3 h = normalize(v + l);
   return ggx_d(max(dot(n, h), 0.0), alpha) * smith_g2(n_dot_v, n_dot_l, alpha) / (4.0 * n_dot_v);
-}
-
-float halton(uint index, uint base)
-{
-  float result = 0.0, fraction = 1.0;
-  while (index > 0u) {
-    fraction /= float(base);
-    result += fraction * float(index % base);
-    index /= base;
-  }
-  return result;
-}
-
-/* Point INDEX of the Halton (2, 3) sequence, rotated per pixel (Cranley-Patterson)
- * so neighbours differ. The rotation is fixed per pixel while the index moves,
- * so each pixel's points over time keep the sequence's even spread. */
-vec2 sample_point(ivec2 pixel, uint index)
-{
-  return fract(vec2(halton(index + 1u, 2u), halton(index + 1u, 3u)) + pixel_noise(pixel, 0u));
 }

@@ -14,6 +14,25 @@
  * get expensive Hi-Z rays, the rest cheap linear rays; ties at the threshold
  * toss a coin of their own, drawn afresh every iteration. */
 
+float halton(uint index, uint base)
+{
+  float result = 0.0, fraction = 1.0;
+  while (index > 0u) {
+    fraction /= float(base);
+    result += fraction * float(index % base);
+    index /= base;
+  }
+  return result;
+}
+
+/* Point INDEX of the Halton (2, 3) sequence, rotated per pixel (Cranley-Patterson)
+ * so neighbours differ. The rotation is fixed per pixel while the index moves,
+ * so each pixel's points over time keep the sequence's even spread. */
+vec2 sample_point(ivec2 pixel, uint index)
+{
+  return fract(vec2(halton(index + 1u, 2u), halton(index + 1u, 3u)) + pixel_noise(pixel, 0u));
+}
+
 ivec2 ray_origin_pixel(ivec2 texel)
 {
   int scale = params.trace_scale;
