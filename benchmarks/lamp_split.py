@@ -1,11 +1,12 @@
-"""What lamp_split=unshadowed costs and how far it is from the exact split (lamp_split=render).
+"""What lamp_split=analytic and unshadowed cost and how far they are from the exact split (lamp_split=render).
 
     .venv/bin/python benchmarks/lamp_split.py [--scenes NAME ...] [--resolution WxH] [--readme README.md]
 
-For each scene one still is rendered twice through the whole chain, once with each split, from the
+For each scene one still is rendered through the whole chain once with each split, from the
 same samples and rays. Errors are relative mean absolute differences on the reflective pixels (the
 bench's mask): of the lamp highlights split off (Specular Direct) and of the final image. Times are
-the split's own render, the fastest of two frames.
+the split's own cost (a render, or the analytic lamps' GPU pass and its transfers), the fastest of
+two frames.
 """
 import argparse
 import os
@@ -24,7 +25,8 @@ from ssr_addon.scene_io import load_scene  # noqa: E402
 
 SCENES = ("mirror_floor", "rough_spheres", "curved_mirror", "rolling_ball", "wet_street", "emissive_panel",
           "crossed_shadows")
-SPLITS = ("render", "unshadowed")
+SPLITS = ("render", "unshadowed", "analytic")
+APPROXIMATE = SPLITS[1:]
 GOAL = 0.02  # the Cost issue's bound on the split's error, relative, on reflective pixels
 
 
@@ -43,13 +45,16 @@ def measure(scene_name, resolution):
     exact, _ = results["render"]
     passes = exact["passes"]
     mask = reflective_mask(passes.roughness, passes.specular_color)
-    approximate, _ = results["unshadowed"]
-    return {
-        "scene": scene_label(resolve_scene(scene_name)),
-        "render_ms": results["render"][1], "unshadowed_ms": results["unshadowed"][1],
-        "lamp_error": relative_mae(passes.specular_direct, approximate["passes"].specular_direct, mask),
-        "final_error": relative_mae(exact["final"][..., :3], approximate["final"][..., :3], mask),
-    }
+    row = {"scene": scene_label(resolve_scene(scene_name)), "ms": {split: results[split][1] for split in SPLITS}}
+    for split in APPROXIMATE:
+        approximate, _ = results[split]
+        row[split] = (relative_mae(passes.specular_direct, approximate["passes"].specular_direct, mask),
+                      relative_mae(exact["final"][..., :3], approximate["final"][..., :3], mask))
+    return row
+
+
+def _percent(value, digits):
+    return "-" if value is None else f"{value:.{digits}%}"
 
 
 def main():
@@ -64,12 +69,15 @@ def main():
              f"{' --readme README.md' if arguments.readme else ''}` (scenes: {', '.join(arguments.scenes)}); "
              f"EEVEE at 16 samples. Error: relative mean absolute difference from `lamp_split=render` on the "
              f"reflective pixels (goal: at most {GOAL:.0%}).", "",
-             "| scene | render split ms | unshadowed split ms | lamp highlights error | final image error |",
-             "|---|---|---|---|---|"]
+             "| scene | " + " | ".join(f"{split} ms" for split in SPLITS) + " | "
+             + " | ".join(f"{split}: lamp highlights error | {split}: final image error" for split in APPROXIMATE) + " |",
+             "|---" * (1 + len(SPLITS) + 2 * len(APPROXIMATE)) + "|"]
     for row in rows:
-        lamp = "-" if row["lamp_error"] is None else f"{row['lamp_error']:.2%}"
-        final = "-" if row["final_error"] is None else f"{row['final_error']:.3%}"
-        lines.append(f"| {row['scene']} | {row['render_ms']:.0f} | {row['unshadowed_ms']:.0f} | {lamp} | {final} |")
+        cells = [f"{row['ms'][split]:.0f}" for split in SPLITS]
+        for split in APPROXIMATE:
+            lamp, final = row[split]
+            cells += [_percent(lamp, 2), _percent(final, 3)]
+        lines.append(f"| {row['scene']} | " + " | ".join(cells) + " |")
     text = "\n".join(lines)
     print(text)
     if arguments.readme:

@@ -33,7 +33,7 @@ from .gpu_backend import download, empty_texture, ensure_backend, upload
 from .gpu_params import LAMP_BLOCK, LAMP_DATA, MAX_LAMPS
 from .shaders import get_pass
 
-STRATA_PER_SIDE = 4  # 4x4 points per sampling strategy
+STRATA_PER_SIDE = 12  # 12x12 points per sampling strategy: within 2 % of a Monte Carlo integral over a highlight (test_analytic_lamps)
 MIN_ALPHA = 2e-3  # GGX alpha floor: below it float32 cannot hold the peak of D
 ALBEDO_TABLE_SIZE = 32
 

@@ -13,6 +13,7 @@ import bpy
 import numpy as np
 import OpenImageIO as oiio
 
+from .analytic_lamps import lamp_specular, require_modelled, scene_lamps
 from .errors import SSRError
 from .gpu_backend import lap
 from .overrides import TemporaryChanges
@@ -33,6 +34,8 @@ EEVEE_RAYTRACING = {
     "light_probe": ("PROBE", {}),
 }
 SSR_BASE_RAYTRACING = "light_probe"  # the set-up of every render and capture SSR composites over
+# Splits whose lamp light is unshadowed and takes its shadows from EEVEE's Shadow pass.
+SHADOWED_SPLITS = ("unshadowed", "analytic")
 
 
 def use_eevee_raytracing(scene, preset, changes):
@@ -95,14 +98,17 @@ def render_samples(scene, engine, samples=None):
     return scene.eevee.taa_render_samples if engine == "eevee" else scene.cycles.samples
 
 
-def lamp_split_method(engine, lamp_split):
+def lamp_split_method(engine, lamp_split, scene=None):
     """The split LAMP_SPLIT (a ChainSettings.lamp_split) stands for with ENGINE: auto is
-    unshadowed with EEVEE (the lamp split's error is measured in benchmarks/lamp_split.py)
-    and render with Cycles, which has no Shadow pass."""
+    unshadowed with EEVEE (the splits' errors are measured in benchmarks/lamp_split.py;
+    analytic is not yet within the Cost issue's 2 %) and render with Cycles, which has no
+    Shadow pass. With SCENE, analytic is refused for lights analytic_lamps cannot model."""
+    if lamp_split in SHADOWED_SPLITS and engine != "eevee":
+        raise SSRError(f"lamp_split={lamp_split} needs EEVEE's Shadow pass: with Cycles use render, auto or off")
     if lamp_split == "auto":
         return "unshadowed" if engine == "eevee" else "render"
-    if lamp_split == "unshadowed" and engine != "eevee":
-        raise SSRError("lamp_split=unshadowed needs EEVEE's Shadow pass: with Cycles use render, auto or off")
+    if lamp_split == "analytic" and scene is not None:
+        require_modelled(scene_lamps(scene)[1])
     return lamp_split
 
 
@@ -116,12 +122,13 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     SSR replaces where its rays hit), or with ray tracing on as
     `eevee_raytracing` names a preset of EEVEE_RAYTRACING.
     LAMP_SPLIT (ChainSettings.lamp_split, through lamp_split_method) is how lamp
-    highlights are split off the specular light, by a second render:
-    render: lamps only (EEVEE) or lamps hidden (Cycles), exact;
-    unshadowed: EEVEE's lamps only without shadows, times the Shadow pass;
+    highlights are split off the specular light:
+    analytic: EEVEE's lamps computed from the scene's lights, times the Shadow pass;
+    render: a second render, lamps only (EEVEE) or lamps hidden (Cycles), exact;
+    unshadowed: a second render of EEVEE's lamps only without shadows, times the Shadow pass;
     off: no split (specular_direct is zero), as when nothing replaces the indirect specular.
-    TIMER (a StageTimer) gets the engine's render as "render" and the second
-    render, the add-on's own cost, as "lamp_split".
+    TIMER (a StageTimer) gets the engine's render as "render" and the split (a second
+    render or the analytic lamps), the add-on's own cost, as "lamp_split".
     The scene, its view layer and its materials are exactly as before on return.
     """
     camera = require_camera(scene)
@@ -129,19 +136,23 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
     require_square_pixels(scene)
     samples = render_samples(scene, engine, samples)
-    lamp_split = lamp_split_method(engine, lamp_split)
+    lamp_split = lamp_split_method(engine, lamp_split, scene)
     view_layer = rendered_view_layer(scene)
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
         _configure_render(scene, view_layer, engine, samples, resolution, changes, eevee_raytracing)
-        if lamp_split == "unshadowed":
+        if lamp_split in SHADOWED_SPLITS:
             changes.set(view_layer, "use_pass_shadow", True)
         material_warnings = tuple(add_material_aovs(scene, view_layer, changes))
         layers = _render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
         lap(timer, "render")
         width, height = scene.render.resolution_x, scene.render.resolution_y
+        view, projection = camera_matrices(scene, width, height)
         if engine == "eevee":
-            lamp_specular = (lambda shadows: _lamp_specular(scene, folder, timer, shadows)) \
-                if has_lamps(scene) else None
+            if lamp_split == "analytic":
+                lamp_specular = lambda shadows: analytic_lamp_specular(scene, layers, view, projection, timer)
+            else:
+                lamp_specular = lambda shadows: _lamp_specular(scene, folder, timer, shadows)
+            lamp_specular = lamp_specular if has_lamps(scene) else None
             specular_direct, specular_indirect = split_eevee_specular(layers, lamp_split, lamp_specular)
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
@@ -154,7 +165,6 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             emitter_specular = _emitter_specular(scene, folder, lamps, timer) if lamps else glossy_direct
             specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
             specular_indirect = glossy_indirect + emitter_specular
-        view, projection = camera_matrices(scene, width, height)
     return frame_passes(layers, specular_direct, specular_indirect, view, projection,
                         (camera.data.clip_start, camera.data.clip_end), engine, samples, material_warnings)
 
@@ -174,7 +184,7 @@ def split_eevee_specular(layers, lamp_split, lamp_specular):
     specular_all = _layer(layers, "Glossy Direct")
     if lamp_split == "off" or lamp_specular is None:
         specular_direct = np.zeros_like(specular_all)
-    elif lamp_split == "unshadowed":
+    elif lamp_split in SHADOWED_SPLITS:
         # The Shadow pass is each sample's shadowed share of all lamp light (every lamp,
         # diffuse and specular together): exact for one lamp, a lamp-weighted mean for more.
         specular_direct = lamp_specular(False) * _layer(layers, "Shadow")[..., :1]
@@ -183,25 +193,42 @@ def split_eevee_specular(layers, lamp_split, lamp_specular):
     return specular_direct, np.maximum(specular_all - specular_direct, 0.0)
 
 
-def frame_passes(layers, specular_direct, specular_indirect, view, projection, clip, engine, samples,
-                 material_warnings=()):
-    """FramePasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
-    Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), the specular split,
-    the camera's matrices and CLIP (clip_start, clip_end)."""
+def surface_layers(layers):
+    """(depth, normal, roughness, coverage) of LAYERS (a render's passes by name): the
+    world's depth set to BACKGROUND_DEPTH, roughness as the surfaces wrote it."""
     aov = _layer(layers, ROUGHNESS_AOV)
-    passes_shape = aov.shape[:2]
     coverage = aov[..., 1]
-    roughness = undo_coverage(aov[..., 0], coverage, fallback=1.0)
+    roughness = np.clip(undo_coverage(aov[..., 0], coverage, fallback=1.0), 0.0, 1.0).astype(np.float32)
     normal = _layer(layers, "Normal")
     depth = _layer(layers, "Depth")[..., 0].copy()
     # The world has no normal; its depth is about clip_end in EEVEE (sometimes a hair
     # below it) and 1e10 in Cycles. Give it one unmistakable value.
     depth[np.linalg.norm(normal, axis=-1) < 0.5] = BACKGROUND_DEPTH
+    return depth, normal, roughness, coverage
+
+
+def analytic_lamp_specular(scene, layers, view, projection, timer=None):
+    """The unshadowed specular light of SCENE's lamps on the surfaces of LAYERS seen through
+    VIEW and PROJECTION, computed (analytic_lamps) rather than rendered; TIMER gets it as
+    "lamp_split"."""
+    depth, normal, roughness, _ = surface_layers(layers)
+    specular = lamp_specular(scene_lamps(scene)[0], depth, normal, roughness, view, projection, BACKGROUND_DEPTH)
+    lap(timer, "lamp_split")
+    return specular
+
+
+def frame_passes(layers, specular_direct, specular_indirect, view, projection, clip, engine, samples,
+                 material_warnings=()):
+    """FramePasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
+    Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), the specular split,
+    the camera's matrices and CLIP (clip_start, clip_end)."""
+    depth, normal, roughness, coverage = surface_layers(layers)
+    passes_shape = depth.shape
     return FramePasses(
         combined=_layer(layers, "Combined"),
         depth=depth,
         normal=normal,
-        roughness=np.clip(roughness, 0.0, 1.0).astype(np.float32),
+        roughness=roughness,
         specular_color=_layer(layers, "Glossy Color"),
         f0=undo_coverage(_layer(layers, F0_AOV)[..., :3], coverage, fallback=0.0),
         # Cycles has no Vector pass while motion blur is on: then objects count as still.

@@ -22,8 +22,8 @@ from .errors import SSRError
 from .gpu_backend import download, lap
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
-from .passes import (SSR_BASE_RAYTRACING, frame_passes, has_lamps, lamp_split_method, lamps_alone,
-                     split_eevee_specular, use_eevee_raytracing)
+from .passes import (SHADOWED_SPLITS, SSR_BASE_RAYTRACING, analytic_lamp_specular, frame_passes, has_lamps,
+                     lamp_split_method, lamps_alone, split_eevee_specular, use_eevee_raytracing)
 
 # Shadings whose viewport draw is EEVEE's and has render passes.
 CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
@@ -55,20 +55,21 @@ class ViewportCapture:
     def capture(self, scene, view_layer, view_matrix, projection_matrix, size, clip, lamp_split="auto", timer=None):
         """FramePasses of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX (4x4 arrays) at SIZE
         (width, height); CLIP is (clip_start, clip_end). TIMER gets "capture" and "lamp_split"."""
-        lamp_split = lamp_split_method("eevee", lamp_split)
+        lamp_split = lamp_split_method("eevee", lamp_split, scene)
         view, projection = _matrix(view_matrix), _matrix(projection_matrix)
         with TemporaryChanges() as changes:
             self._prepare(scene, size, changes)
             use_eevee_raytracing(scene, SSR_BASE_RAYTRACING, changes)
             warnings = add_material_aovs(scene, view_layer, changes)
             view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
-            wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if lamp_split == "unshadowed" else {}))
+            wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if lamp_split in SHADOWED_SPLITS else {}))
             # A render's passes have three channels but Combined: so do these.
             layers = {name: self._draw(scene, view_layer, view, projection, render_pass,
                                        4 if name == "Combined" else 3) for name, render_pass in wanted.items()}
             lap(timer, "capture")
+            layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
 
-            def lamp_specular(shadows):
+            def rendered_lamp_specular(shadows):
                 with TemporaryChanges() as lamp_only:
                     lamps_alone(scene, lamp_only, shadows)
                     view_layer.update()
@@ -76,10 +77,13 @@ class ViewportCapture:
                 view_layer.update()
                 lap(timer, "lamp_split")
                 return specular
+
+            def computed_lamp_specular(shadows):
+                return analytic_lamp_specular(scene, layers, view_matrix, projection_matrix, timer)
+            lamp_specular = computed_lamp_specular if lamp_split == "analytic" else rendered_lamp_specular
             specular_direct, specular_indirect = split_eevee_specular(
                 layers, lamp_split, lamp_specular if has_lamps(scene) else None)
         view_layer.update()
-        layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
         return frame_passes(layers, specular_direct, specular_indirect, np.asarray(view_matrix, np.float32),
                             np.asarray(projection_matrix, np.float32), clip, "eevee", scene.eevee.taa_samples,
                             warnings)

@@ -46,6 +46,7 @@ def error_lines(result):
     ("not a number", ["--set", "thickness=nan"], "finite"),
     ("infinite setting", ["--set", "max_distance=inf"], "finite"),
     ("split without a shadow pass", ["--engine", "cycles", "--set", "lamp_split=unshadowed"], "Shadow pass"),
+    ("analytic split without a shadow pass", ["--engine", "cycles", "--set", "lamp_split=analytic"], "Shadow pass"),
 ])
 def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
     scene = {"missing file": tmp_path / "absent.blend",
