@@ -1,5 +1,6 @@
 """Fixtures shared by the whole suite (one GPU backend per session, like moderngl's tests)."""
 import json
+import math
 import os
 import subprocess
 import sys
@@ -95,3 +96,31 @@ def dolly(tmp_path_factory):
     path = tmp_path_factory.mktemp("dolly") / "dolly.py"
     path.write_text(DOLLY)
     return path
+
+
+def metal_floor_under(light_type, **settings):
+    """A glossy metal floor (roughness 0.3) under one light of LIGHT_TYPE with SETTINGS, lit from
+    ahead of a camera looking down at it (64x36)."""
+    import bpy
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = 64, 36
+    bpy.ops.mesh.primitive_plane_add(size=20)
+    material = bpy.data.materials.new("Floor")
+    bsdf = material.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Metallic"].default_value = 1.0
+    bsdf.inputs["Roughness"].default_value = 0.3
+    bpy.context.active_object.data.materials.append(material)
+    light = bpy.data.lights.new("Lamp", light_type)
+    for name, value in settings.items():
+        setattr(light, name, value)
+    lamp = bpy.data.objects.new("Lamp", light)
+    lamp.location = (0, 3, 1.5)
+    lamp.rotation_euler = (math.radians(-70 if light_type == "SUN" else -30), 0, 0)
+    scene.collection.objects.link(lamp)
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    camera.location = (0, -4, 2)
+    camera.rotation_euler = (math.radians(70), 0, 0)
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    return scene

@@ -10,6 +10,8 @@ import bpy
 import numpy as np
 import pytest
 
+from conftest import metal_floor_under
+from synthetic import perspective
 from ssr_addon.analytic_lamps import Lamp, lamp_specular
 from ssr_addon.errors import SSRError
 from ssr_addon.passes import lamp_split_method, render_passes
@@ -23,12 +25,7 @@ def _camera():
     """View and projection matrices of a camera at (0, 0, HEIGHT) looking down -z."""
     view = np.eye(4)
     view[2, 3] = -HEIGHT
-    aspect = SIZE[0] / SIZE[1]
-    near, far = 0.1, 100.0
-    focal = 1 / math.tan(HALF_FOV)
-    projection = np.array([[focal / aspect, 0, 0, 0], [0, focal, 0, 0],
-                           [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1, 0]])
-    return view, projection
+    return view, perspective(*SIZE, fov_y_degrees=math.degrees(2 * HALF_FOV)).astype(np.float64)
 
 
 def _floor_point(row, column):
@@ -119,31 +116,6 @@ def test_the_lamp_pass_matches_a_monte_carlo_integral(gpu_backend, lamp_name, ro
     assert abs(got.sum() / expected.sum() - 1) <= 0.02  # the split's own bound, over the highlight
 
 
-def _metal_floor_under(light_type, **settings):
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = 64, 36
-    bpy.ops.mesh.primitive_plane_add(size=20)
-    material = bpy.data.materials.new("Floor")
-    bsdf = material.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Metallic"].default_value = 1.0
-    bsdf.inputs["Roughness"].default_value = 0.3
-    bpy.context.active_object.data.materials.append(material)
-    light = bpy.data.lights.new("Lamp", light_type)
-    for name, value in settings.items():
-        setattr(light, name, value)
-    lamp = bpy.data.objects.new("Lamp", light)
-    lamp.location = (0, 3, 1.5)
-    lamp.rotation_euler = (math.radians(-70 if light_type == "SUN" else -30), 0, 0)
-    scene.collection.objects.link(lamp)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0, -4, 2)
-    camera.rotation_euler = (math.radians(70), 0, 0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    return scene
-
-
 # Known gap (the Cost issue): EEVEE's LTC lobe is wider than GGX's near its peak and lighter in
 # its tails, so on a floor lit by little but the highlight the split moves 8-15 % of the image.
 @pytest.mark.xfail(strict=True, reason="the analytic lobe is GGX, EEVEE's is an LTC fit of it")
@@ -159,7 +131,7 @@ def test_the_analytic_split_matches_eevees_rendered_one(gpu_backend, light_type,
     not GGX itself; a wrong unit convention is off by pi or more), and what the split error can
     move in the final image, specular colour times the highlight's error, stays under 2 % of
     the image on the floor (the Cost issue's bound)."""
-    scene = _metal_floor_under(light_type, **settings)
+    scene = metal_floor_under(light_type, **settings)
     exact = render_passes(scene, "eevee", samples=8, lamp_split="render")
     analytic = render_passes(scene, "eevee", samples=8, lamp_split="analytic")
     floor = exact.depth < 1e9
@@ -176,7 +148,7 @@ def test_the_analytic_split_matches_eevees_rendered_one(gpu_backend, light_type,
 def test_analytic_refuses_lights_it_cannot_model():
     """Light linking is beyond the analytic lamps: asking for them says which light stops
     them, in one line; auto keeps a rendered split."""
-    scene = _metal_floor_under("POINT", energy=100)
+    scene = metal_floor_under("POINT", energy=100)
     assert lamp_split_method("eevee", "analytic", scene) == "analytic"
     linked = bpy.data.collections.new("Linked")
     scene.objects["Lamp"].light_linking.receiver_collection = linked

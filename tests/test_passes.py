@@ -5,7 +5,7 @@ import bpy
 import numpy as np
 import pytest
 
-from conftest import SCENES
+from conftest import SCENES, metal_floor_under
 from ssr_addon.passes import lamp_world_for_run, render_passes
 from ssr_addon.scene_io import load_scene
 
@@ -205,27 +205,11 @@ def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone():
 
 def _sun_behind_a_wall():
     """One low sun facing the camera over a glossy metal floor; a wall's shadow covers half
-    of the sun's highlight on the floor."""
-    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = 64, 36
-    bpy.ops.mesh.primitive_plane_add(size=20)
-    floor_material = bpy.data.materials.new("Floor")
-    bsdf = floor_material.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Metallic"].default_value = 1.0
-    bsdf.inputs["Roughness"].default_value = 0.3
-    bpy.context.active_object.data.materials.append(floor_material)
+    of the sun's highlight on the floor (towards the sun: (0, 0.94, 0.34), the camera's
+    mirror direction)."""
+    scene = metal_floor_under("SUN")
     bpy.ops.mesh.primitive_cube_add(location=(-0.6, 3.5, 0.5), scale=(0.6, 0.1, 0.5))
-    wall = bpy.context.active_object
-    sun = bpy.data.objects.new("Sun", bpy.data.lights.new("Sun", "SUN"))
-    sun.rotation_euler = (np.radians(-70), 0, 0)  # towards the sun: (0, 0.94, 0.34), the camera's mirror direction
-    scene.collection.objects.link(sun)
-    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    camera.location = (0, -4, 2)
-    camera.rotation_euler = (np.radians(70), 0, 0)
-    scene.collection.objects.link(camera)
-    scene.camera = camera
-    return scene, wall
+    return scene, bpy.context.active_object
 
 
 def test_the_unshadowed_lamp_split_matches_the_exact_split_for_one_lamp():
