@@ -10,8 +10,8 @@ computes them here instead of rendering the lamps a second time (passes.py):
   radius (with Soft Falloff a disk facing the surface), suns disks of their angle,
   area lights rectangles or ellipses; spot cones with blend, the distance fade of
   the light threshold or custom distance, and the fade below a surface's horizon.
-  Lights it cannot model (light linking, square spots) are named, and `auto` then
-  renders the split instead.
+  Lights it cannot model (light linking, square spots, more than MAX_LAMPS) are
+  named, and lamp_split=analytic is refused for them in one line.
 - `lamp_specular(lamps, ...)` integrates each lamp's radiance against the
   normalised GGX lobe, the quantity EEVEE's "Specular Light" holds (its LTC
   integral; the pass is later multiplied by the split-sum specular colour). The
