@@ -49,8 +49,8 @@ PARAMS_FIELDS = (
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
 )
 
-# Lights of lamp_split=analytic (analytic_lamps.py, lamp_specular.glsl); a scene with more
-# renders its lamp split instead.
+# Lights of lamp_split=analytic (analytic_lamps.py, lamp_specular.glsl); it refuses a scene
+# with more.
 MAX_LAMPS = 64
 
 LAMP_FIELDS = (
@@ -130,10 +130,10 @@ class Std140Struct:
         for name, value in values.items():
             base, offset, size = self.offsets[name]
             if base in self.nested:
-                struct = self.nested[base]
-                stride = -(-struct.words // 4) * 4
+                struct = self.nested[base]  # its words are a whole number of vec4s: the array stride
                 for index, element in enumerate(value):
-                    words[offset + index * stride:offset + index * stride + struct.words] = struct.pack(element)
+                    start = offset + index * struct.words
+                    words[start:start + struct.words] = struct.pack(element)
             elif base == "mat4":
                 as_float[offset:offset + size] = np.asarray(value, np.float64).T.ravel()
             elif base == "int":
