@@ -17,6 +17,7 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 from ssr_addon.bench.metrics import relative_mae, reflective_mask  # noqa: E402
 from ssr_addon.bench.scenes import resolve_scene, scene_label  # noqa: E402
+from ssr_addon.gpu_backend import describe_gpu  # noqa: E402
 from ssr_addon.outputs import rewrite_readme_block  # noqa: E402
 from ssr_addon.params import ChainSettings  # noqa: E402
 from ssr_addon.passes import lamp_world_for_run  # noqa: E402
@@ -66,14 +67,15 @@ def main():
     rows = [measure(name, arguments.resolution) for name in arguments.scenes]
     width, height = arguments.resolution
     lines = [f"Latest run: `.venv/bin/python benchmarks/lamp_split.py --resolution {width}x{height}"
-             f"{' --readme README.md' if arguments.readme else ''}` (scenes: {', '.join(arguments.scenes)}); "
+             f"{' --readme README.md' if arguments.readme else ''}` on {describe_gpu()['renderer']} "
+             f"(scenes: {', '.join(arguments.scenes)}); "
              f"EEVEE at 16 samples. Error: relative mean absolute difference from `lamp_split=render` on the "
              f"reflective pixels (goal: at most {GOAL:.0%}).", "",
              "| scene | " + " | ".join(f"{split} ms" for split in SPLITS) + " | "
              + " | ".join(f"{split}: lamp highlights error | {split}: final image error" for split in APPROXIMATE) + " |",
              "|---" * (1 + len(SPLITS) + 2 * len(APPROXIMATE)) + "|"]
     for row in rows:
-        cells = [f"{row['ms'][split]:.0f}" for split in SPLITS]
+        cells = [f"{row['ms'][split]:.1f}" for split in SPLITS]
         for split in APPROXIMATE:
             lamp, final = row[split]
             cells += [_percent(lamp, 2), _percent(final, 3)]

@@ -88,7 +88,7 @@ class ChainSettings:
     # so the engine's specular light is split into the two.
     lamp_split: str = _setting(
         "auto", "How lamp highlights are told apart from reflected light, which SSR replaces",
-        items=(("auto", "Auto", "Unshadowed with EEVEE, Render with Cycles"),
+        items=(("auto", "Auto", "Analytic with EEVEE (Unshadowed where a light is not modelled), Render with Cycles"),
                ("analytic", "Analytic",
                 "EEVEE only: lamp highlights computed from the scene's lights (point, spot, sun, area), "
                 "shadowed by the Shadow pass: no second render, but EEVEE's fitted lobe differs from "

@@ -99,14 +99,19 @@ def render_samples(scene, engine, samples=None):
 
 
 def lamp_split_method(engine, lamp_split, scene=None):
-    """The split LAMP_SPLIT (a ChainSettings.lamp_split) stands for with ENGINE: auto is
-    unshadowed with EEVEE (the splits' errors are measured in benchmarks/lamp_split.py;
-    analytic is not yet within the Cost issue's 2 %) and render with Cycles, which has no
-    Shadow pass. With SCENE, analytic is refused for lights analytic_lamps cannot model."""
+    """The split LAMP_SPLIT (a ChainSettings.lamp_split) stands for with ENGINE and SCENE.
+
+    auto is analytic with EEVEE when analytic_lamps models every light of SCENE (without
+    SCENE, as when settings are checked before any frame, that is assumed), unshadowed when
+    it does not, and render with Cycles, which has no Shadow pass. The splits' costs and
+    errors are measured in benchmarks/lamp_split.py. With SCENE, analytic is refused for
+    lights it cannot model."""
     if lamp_split in SHADOWED_SPLITS and engine != "eevee":
         raise SSRError(f"lamp_split={lamp_split} needs EEVEE's Shadow pass: with Cycles use render, auto or off")
     if lamp_split == "auto":
-        return "unshadowed" if engine == "eevee" else "render"
+        if engine != "eevee":
+            return "render"
+        return "unshadowed" if scene is not None and scene_lamps(scene)[1] else "analytic"
     if lamp_split == "analytic" and scene is not None:
         require_modelled(scene_lamps(scene)[1])
     return lamp_split

@@ -349,5 +349,5 @@ def _summarise(report, log):
         addon_ms = sum(entry["addon_ms"] for entry in timed) / len(timed)
         report["mean_ms_per_frame"] = {"render": round(render_ms, 1), "addon": round(addon_ms, 1),
                                        "addon_over_render": round(addon_ms / render_ms, 4)}
-        log(f"per frame: render {render_ms:.0f} ms, add-on (lamp-only render, read-back, chain, composite, writing) "
+        log(f"per frame: render {render_ms:.0f} ms, add-on (lamp split, read-back, chain, composite, writing) "
             f"{addon_ms:.0f} ms = {addon_ms / render_ms:.3f} x the render")

@@ -161,9 +161,10 @@ def test_the_analytic_split_moves_the_image_by_at_most_2_percent(floor_splits):
 
 def test_analytic_refuses_lights_it_cannot_model():
     """Light linking is beyond the analytic lamps: asking for them says which light stops
-    them, in one line; auto keeps a rendered split."""
+    them, in one line; auto is analytic until then, and a rendered split after."""
     scene = metal_floor_under("POINT", energy=100)
     assert lamp_split_method("eevee", "analytic", scene) == "analytic"
+    assert lamp_split_method("eevee", "auto", scene) == "analytic"
     linked = bpy.data.collections.new("Linked")
     scene.objects["Lamp"].light_linking.receiver_collection = linked
     with pytest.raises(SSRError, match="'Lamp' uses light linking"):

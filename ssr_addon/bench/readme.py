@@ -56,7 +56,7 @@ def readme_block(report, out_dir, readme_dir):
         f"{report['gpu']['renderer']}{_gpu_note(report['gpu']['renderer'])}. Reference: Cycles, "
         f"{report['reference']['samples']} samples; EEVEE: {report['eevee_samples']} samples. Time: wall time "
         f"per frame of the whole method, engine render included; *add-on ms*: our own share of it, everything "
-        f"but the engine's render (in scenes with lamps SSR needs a second, lamp-only render: `lamp_split`, "
+        f"but the engine's render (in scenes with lamps SSR splits their highlights off: `lamp_split`, "
         f"counted here); the contenders take turns over {report['frames_per_contender']} frames and each "
         f"stage counts its fastest after the first; ×copy: as a multiple of a "
         f"full-screen copy pass ({copy_ms:.3f} ms here, "

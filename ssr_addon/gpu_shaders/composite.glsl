@@ -17,7 +17,7 @@
  * through untouched; where c is 0 the probe/world reflection stays.
  *
  * indirect_specular is everything SSR can stand in for, lamps excepted (passes.py):
- *   EEVEE:  Specular Light less a lamp-only render's (probes and the world);
+ *   EEVEE:  Specular Light less the lamps' highlights (probes and the world);
  *   Cycles: Glossy Indirect (other surfaces) plus the part of Glossy Direct that is
  *           not lamps the camera cannot see: reflected emissive surfaces and the world,
  *           which Cycles counts as direct light (one bounce to an emitter). SSR's rays
