@@ -30,7 +30,7 @@ import numpy as np
 
 from .errors import SSRError
 from .gpu_backend import download, empty_texture, ensure_backend, upload
-from .gpu_params import LAMP_BLOCK, LAMP_DATA, MAX_LAMPS
+from .gpu_params import LAMP_BLOCK, MAX_LAMPS
 from .shaders import get_pass
 
 STRATA_PER_SIDE = 12  # 12x12 points per sampling strategy: within 2 % of a Monte Carlo integral over a highlight (test_analytic_lamps)
@@ -187,7 +187,6 @@ def lamp_block(lamps, size, view_matrix, projection_matrix, background_depth):
                 "spot_size_inv": lamp.spot[2:] if lamp.spot else (1.0, 1.0),
                 "spot_bias": lamp.spot[1] if lamp.spot else 1.0, "is_spot": int(lamp.spot is not None)}
                for lamp in lamps]
-    records += [{field: 0 for field in LAMP_DATA.offsets}] * (MAX_LAMPS - len(records))
     return gpu.types.GPUUniformBuf(LAMP_BLOCK.pack({
         "clip_to_view": np.linalg.inv(np.asarray(projection_matrix, np.float64)),
         "view_to_world": np.linalg.inv(np.asarray(view_matrix, np.float64)),

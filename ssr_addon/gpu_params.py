@@ -89,7 +89,7 @@ class Std140Struct:
     """A GLSL struct: its declaration and the std140 bytes of {field: value}, every field required.
 
     FIELDS are (GLSL type, name, comment); arrays as "vec4[N]" or "Struct[N]" of a struct in
-    NESTED. Matrices are given in numpy (row-major) convention and stored column-major, as
+    NESTED; an array of structs may be given fewer than N, the rest left zero. Matrices are given in numpy (row-major) convention and stored column-major, as
     GLSL reads them.
     """
 
@@ -131,6 +131,8 @@ class Std140Struct:
             base, offset, size = self.offsets[name]
             if base in self.nested:
                 struct = self.nested[base]  # its words are a whole number of vec4s: the array stride
+                if len(value) * struct.words > size:
+                    raise ValueError(f"{self.name}.{name}: {len(value)} elements, room for {size // struct.words}")
                 for index, element in enumerate(value):
                     start = offset + index * struct.words
                     words[start:start + struct.words] = struct.pack(element)

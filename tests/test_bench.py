@@ -7,7 +7,7 @@ import pytest
 from conftest import run_cli
 from ssr_addon import bench
 
-SCENE = "glossy_corridor"  # no lamps, so SSR contenders need no second, lamp-only render
+SCENE = "glossy_corridor"  # no lamps, so no lamp split
 TINY = ("--scenes", SCENE, "--resolution", "64x36", "--frames", "1", "--samples", "1", "--reference-samples", "64",
         "--no-stability")
 
@@ -99,6 +99,7 @@ def test_readme_block_is_replaced_in_place(runs, tmp_path):
 @pytest.mark.parametrize("extra, expected", [
     (("--scenes", "no_such_scene"), "no_such_scene"),
     (("--contenders", "nothing*"), "--contenders"),
+    (("--contenders", "none", "ssr balanced lamp_split=nothing"), "lamp_split=nothing"),  # not dropped silently
     (("--resolution", "64by36"), "--resolution"),
     (("--frames", "0"), "--frames"),
 ])

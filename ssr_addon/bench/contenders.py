@@ -28,7 +28,9 @@ def all_contenders():
                   Contender("eevee-rt-high", "eevee-rt-high")]
     for name, overrides in PRESETS.items():
         contenders.append(Contender(f"ssr {name}", "ssr", replace(ChainSettings(), **overrides)))
-    contenders.append(Contender("ssr balanced lamp_split=render", "ssr", replace(ChainSettings(), lamp_split="render")))
+    for lamp_split in ("render", "unshadowed"):  # auto (analytic with EEVEE) against the rendered splits
+        contenders.append(Contender(f"ssr balanced lamp_split={lamp_split}", "ssr",
+                                    replace(ChainSettings(), lamp_split=lamp_split)))
     for toggle in STAGE_TOGGLES:
         contenders.append(Contender(f"ssr {toggle}=off", "ssr", replace(ChainSettings(), **{toggle: False})))
     return contenders
@@ -38,10 +40,11 @@ def select_contenders(patterns):
     contenders = all_contenders()
     if not patterns:
         return contenders
-    chosen = [c for c in contenders if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
-    if not chosen:
-        raise SSRError(f"--contenders {' '.join(patterns)}: matches none of {', '.join(c.name for c in contenders)}")
-    return chosen
+    unmatched = [p for p in patterns if not any(fnmatch.fnmatchcase(c.name, p) for c in contenders)]
+    if unmatched:
+        raise SSRError(f"--contenders {' '.join(repr(p) for p in unmatched)}: matches none of "
+                       f"{', '.join(c.name for c in contenders)}")
+    return [c for c in contenders if any(fnmatch.fnmatchcase(c.name, p) for p in patterns)]
 
 
 def run_contenders(scene, contenders, options):
