@@ -152,9 +152,10 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         lap(timer, "render")
         width, height = scene.render.resolution_x, scene.render.resolution_y
         view, projection = camera_matrices(scene, width, height)
+        surface = surface_layers(layers)
         if engine == "eevee":
             if lamp_split == "analytic":
-                lamp_specular = lambda shadows: analytic_lamp_specular(scene, layers, view, projection, timer)
+                lamp_specular = lambda shadows: analytic_lamp_specular(scene, surface, view, projection, timer)
             else:
                 lamp_specular = lambda shadows: _lamp_specular(scene, folder, timer, shadows)
             lamp_specular = lamp_specular if has_lamps(scene) else None
@@ -170,7 +171,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             emitter_specular = _emitter_specular(scene, folder, lamps, timer) if lamps else glossy_direct
             specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
             specular_indirect = glossy_indirect + emitter_specular
-    return frame_passes(layers, specular_direct, specular_indirect, view, projection,
+    return frame_passes(layers, surface, specular_direct, specular_indirect, view, projection,
                         (camera.data.clip_start, camera.data.clip_end), engine, samples, material_warnings)
 
 
@@ -212,22 +213,22 @@ def surface_layers(layers):
     return depth, normal, roughness, coverage
 
 
-def analytic_lamp_specular(scene, layers, view, projection, timer=None):
-    """The unshadowed specular light of SCENE's lamps on the surfaces of LAYERS seen through
-    VIEW and PROJECTION, computed (analytic_lamps) rather than rendered; TIMER gets it as
-    "lamp_split"."""
-    depth, normal, roughness, _ = surface_layers(layers)
+def analytic_lamp_specular(scene, surface, view, projection, timer=None):
+    """The unshadowed specular light of SCENE's lamps on SURFACE (surface_layers of a frame)
+    seen through VIEW and PROJECTION, computed (analytic_lamps) rather than rendered; TIMER
+    gets it as "lamp_split"."""
+    depth, normal, roughness, _ = surface
     specular = lamp_specular(scene_lamps(scene)[0], depth, normal, roughness, view, projection, BACKGROUND_DEPTH)
     lap(timer, "lamp_split")
     return specular
 
 
-def frame_passes(layers, specular_direct, specular_indirect, view, projection, clip, engine, samples,
+def frame_passes(layers, surface, specular_direct, specular_indirect, view, projection, clip, engine, samples,
                  material_warnings=()):
     """FramePasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
-    Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), the specular split,
-    the camera's matrices and CLIP (clip_start, clip_end)."""
-    depth, normal, roughness, coverage = surface_layers(layers)
+    Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), their SURFACE
+    (surface_layers), the specular split, the camera's matrices and CLIP (clip_start, clip_end)."""
+    depth, normal, roughness, coverage = surface
     passes_shape = depth.shape
     return FramePasses(
         combined=_layer(layers, "Combined"),

@@ -23,7 +23,7 @@ from .gpu_backend import download, lap
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
 from .passes import (SHADOWED_SPLITS, SSR_BASE_RAYTRACING, analytic_lamp_specular, frame_passes, has_lamps,
-                     lamp_split_method, lamps_alone, split_eevee_specular, use_eevee_raytracing)
+                     lamp_split_method, lamps_alone, split_eevee_specular, surface_layers, use_eevee_raytracing)
 
 # Shadings whose viewport draw is EEVEE's and has render passes.
 CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
@@ -68,6 +68,7 @@ class ViewportCapture:
                                        4 if name == "Combined" else 3) for name, render_pass in wanted.items()}
             lap(timer, "capture")
             layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
+            surface = surface_layers(layers)
 
             def rendered_lamp_specular(shadows):
                 with TemporaryChanges() as lamp_only:
@@ -79,12 +80,12 @@ class ViewportCapture:
                 return specular
 
             def computed_lamp_specular(shadows):
-                return analytic_lamp_specular(scene, layers, view_matrix, projection_matrix, timer)
+                return analytic_lamp_specular(scene, surface, view_matrix, projection_matrix, timer)
             lamp_specular = computed_lamp_specular if lamp_split == "analytic" else rendered_lamp_specular
             specular_direct, specular_indirect = split_eevee_specular(
                 layers, lamp_split, lamp_specular if has_lamps(scene) else None)
         view_layer.update()
-        return frame_passes(layers, specular_direct, specular_indirect, np.asarray(view_matrix, np.float32),
+        return frame_passes(layers, surface, specular_direct, specular_indirect, np.asarray(view_matrix, np.float32),
                             np.asarray(projection_matrix, np.float32), clip, "eevee", scene.eevee.taa_samples,
                             warnings)
 
