@@ -89,8 +89,8 @@ class Std140Struct:
     """A GLSL struct: its declaration and the std140 bytes of {field: value}, every field required.
 
     FIELDS are (GLSL type, name, comment); arrays as "vec4[N]" or "Struct[N]" of a struct in
-    NESTED; an array of structs may be given fewer than N, the rest left zero. Matrices are given in numpy (row-major) convention and stored column-major, as
-    GLSL reads them.
+    NESTED; an array of structs may be given fewer than N, the rest left zero. Matrices are
+    given in numpy (row-major) convention and stored column-major, as GLSL reads them.
     """
 
     def __init__(self, name, fields, nested=()):

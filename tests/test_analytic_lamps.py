@@ -170,3 +170,16 @@ def test_analytic_refuses_lights_it_cannot_model():
     with pytest.raises(SSRError, match="'Lamp' uses light linking"):
         lamp_split_method("eevee", "analytic", scene)
     assert lamp_split_method("eevee", "auto", scene) == "unshadowed"
+
+
+def test_a_lamp_array_packs_only_the_lamps_given():
+    """LampBlock's array is MAX_LAMPS long; lamp_block packs the scene's lamps alone, so the rest
+    must read as zero (lamp_count bounds the shader's loop) and more than fit is an error."""
+    from ssr_addon.gpu_params import LAMP_BLOCK, LAMP_DATA, MAX_LAMPS
+    lamp = {field: 1 for field in LAMP_DATA.offsets}
+    values = {field: 0 for field in LAMP_BLOCK.offsets}
+    words = LAMP_BLOCK.pack(dict(values, lamps=[lamp, lamp]))
+    padded = LAMP_BLOCK.pack(dict(values, lamps=[lamp, lamp] + [{f: 0 for f in LAMP_DATA.offsets}] * (MAX_LAMPS - 2)))
+    assert np.array_equal(words, padded) and words.any()
+    with pytest.raises(ValueError, match="room for"):
+        LAMP_BLOCK.pack(dict(values, lamps=[lamp] * (MAX_LAMPS + 1)))
