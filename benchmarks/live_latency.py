@@ -6,7 +6,7 @@ At each resolution the scene camera's view is previewed once to warm EEVEE's vie
 (shader compilation), then the camera moves a little and the view is previewed again,
 exactly as the live mode captures and refines a view that has just stopped moving
 (ssr_addon.preview). The second preview's images (first image, converged) go to
-docs/live/WxH/ and its timings into the table.
+IMAGES/WxH/ (IMAGES: --images, default docs/live) and its timings into the table.
 """
 import argparse
 import os
@@ -32,9 +32,9 @@ SCENE = "mirror_floor"
 OUT = os.path.join(REPO, "docs", "live")
 
 
-def measure(resolution):
+def measure(resolution, images):
     scene = load_scene(os.path.join(REPO, "test_scenes", f"{SCENE}.py"))
-    folder = os.path.join(OUT, "{}x{}".format(*resolution))
+    folder = os.path.join(images, "{}x{}".format(*resolution))
     run_preview(scene, folder, ChainSettings(), resolution, log=lambda line: None)  # warms the viewport engine
     scene.camera.location.x += 0.05  # the view changes, as after a navigation
     bpy.context.view_layer.update()
@@ -66,11 +66,16 @@ def main():
     parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=[(320, 180), (1280, 720)])
     parser.add_argument("--readme", help="rewrite a block of this README with the table")
     parser.add_argument("--block", default="live", help="the README block to rewrite (default: live)")
+    parser.add_argument("--images", default=OUT, help="folder of the WxH/ image folders (default: docs/live)")
     arguments = parser.parse_args()
-    rows = [measure(resolution) for resolution in arguments.resolutions]
+    arguments.images = os.path.abspath(arguments.images)
+    rows = [measure(resolution, arguments.images) for resolution in arguments.resolutions]
     ensure_backend()
+    images = os.path.relpath(arguments.images, REPO).replace(os.sep, "/")
     lines = [f"Latest run: `.venv/bin/python benchmarks/live_latency.py"
-             f"{' --readme README.md' if arguments.readme else ''}` on {describe_gpu()['renderer']}, "
+             f"{' --readme README.md' if arguments.readme else ''}"
+             f"{f' --block {arguments.block}' if arguments.block != 'live' else ''}"
+             f"{f' --images {images}' if images != 'docs/live' else ''}` on {describe_gpu()['renderer']}, "
              f"{SCENE}, balanced preset, after a camera move (EEVEE already compiled).", "",
              "| resolution | first SSR image | converged | iterations | capture (passes) | capture (lamp split) "
              "| chain per iteration | overlay draw | add-on share (chain + draw) |",
@@ -83,7 +88,7 @@ def main():
                      f"| {row['chain_ms_per_iteration']:.1f} ms | {row['draw_ms']:.2f} ms "
                      f"| {row['chain_ms_per_iteration'] + row['draw_ms']:.1f} ms |")
     first = arguments.resolutions[0]
-    folder = "docs/live/{}x{}".format(*first)
+    folder = os.path.relpath(os.path.join(arguments.images, "{}x{}".format(*first)), REPO).replace(os.sep, "/")
     lines += ["", f"First image, then converged ({first[0]}x{first[1]}):", "",
               f"![first live image]({folder}/first.png) ![converged live image]({folder}/preview.png)"]
     text = "\n".join(lines)
