@@ -57,7 +57,8 @@ def readme_block(report, out_dir, readme_dir):
     copy_ms = report["copy_pass_ms"][f"{width}x{height}"]
     lines = [
         f"Latest run: `python -m ssr_addon bench --scenes {' '.join(report['scenes'])} "
-        f"--resolution {width}x{height} --out {folder} --readme README.md{_contenders_argument(report)}` on "
+        f"--resolution {width}x{height} --frames {report['frames_per_contender']} --out {folder} --readme README.md"
+        f"{_contenders_argument(report)}` on "
         f"Blender {report['blender']}, "
         f"{report['gpu']['renderer']}{_gpu_note(report['gpu']['renderer'])}. Reference: Cycles, "
         f"{report['reference']['samples']} samples; EEVEE: {report['eevee_samples']} samples. Time: wall time "
