@@ -158,19 +158,19 @@ def test_f0_is_the_surfaces_own_at_antialiased_edges(roughness_scene):
 
 
 def test_a_run_keeps_one_black_world_and_removes_it(roughness_scene):
-    """The lamp-only render of every frame of a run uses the same black world (a new one each
-    frame made EEVEE rebuild its world lighting), with the same lamp light as a lone render's;
-    the run leaves no world behind."""
+    """The lamp-only render of every frame of a run (a rendered split: auto's is analytic and
+    renders nothing) uses the same black world (a new one each frame made EEVEE rebuild its
+    world lighting), with the same lamp light as a lone render's; the run leaves no world behind."""
     lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
     lamp.location = (0, 0.5, 2)
     roughness_scene.collection.objects.link(lamp)
     worlds = set(bpy.data.worlds)
-    alone = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+    alone = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
     assert set(bpy.data.worlds) == worlds
     with lamp_world_for_run():
-        first = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+        first = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
         made = set(bpy.data.worlds) - worlds
-        second = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+        second = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
         assert len(made) == 1 and set(bpy.data.worlds) - worlds == made
     assert set(bpy.data.worlds) == worlds
     assert alone.specular_direct.max() > 0, "the lamp must light the planes"
