@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 OUT ?= out/demo
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench bench-stages crops bench-chain bench-memory bench-lamps bench-live dist validate clean
+.PHONY: demo test bench bench-stages crops bench-chain bench-memory bench-lamps bench-live slides dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -54,6 +54,10 @@ bench-lamps: $(STAMP)
 # Latency of live SSR from a view change to the first image and to convergence (docs/live/).
 bench-live: $(STAMP)
 	$(PY) benchmarks/live_latency.py --readme README.md
+
+# The deck's comparisons, rendered and measured (docs/slides/index.html, its PNGs, slides.json).
+slides: $(STAMP)
+	$(PY) -m ssr_addon slides --out docs/slides
 
 validate: $(STAMP)
 	$(PY) $(BLENDER_EXT) validate .

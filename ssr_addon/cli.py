@@ -1,5 +1,5 @@
 """Command line: `python -m ssr_addon render SCENE --out DIR ...`, `... compare SCENE --out DIR`,
-`... preview SCENE --out DIR` and `... bench --out DIR`.
+`... preview SCENE --out DIR`, `... bench --out DIR` and `... slides --out DIR`.
 
 Also reachable from the Blender binary, where SCENE may be left out to use the
 .blend file Blender opened:
@@ -56,6 +56,11 @@ def build_parser():
     compare.add_argument("--frame", type=int, help="frame to render (default: the current frame)")
     compare.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                          help="override a chain setting (repeatable)")
+    slides = commands.add_parser("slides", help="the deck's comparisons, each rendered and measured: "
+                                                "index.html, its PNGs and slides.json")
+    slides.add_argument("--out", required=True, help="output folder")
+    slides.add_argument("--resolution", help="WIDTHxHEIGHT (default: 480x270; 128x72 with --quick)")
+    slides.add_argument("--quick", action="store_true", help="small images and few samples, for a quick check")
     preview = commands.add_parser("preview", help="what the live viewport shows: the camera view captured from "
                                                   "EEVEE's viewport and refined until converged, with timings")
     preview.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
@@ -102,6 +107,10 @@ def run(argv=None):
         return _compare(arguments)
     if arguments.command == "preview":
         return _preview(arguments)
+    if arguments.command == "slides":
+        from .slides import run_slides
+        return run_slides(arguments.out, parse_resolution(arguments.resolution) if arguments.resolution else None,
+                          arguments.quick)
     request = RenderRequest(
         out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
         resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
