@@ -34,7 +34,7 @@ class SlideContext:
         self.out_dir, self.resolution, self.quick, self.log = out_dir, resolution, quick, log
         self.samples = 4 if quick else 16
         self.reference_samples = 64 if quick else 1024
-        self._scenes, self._references = {}, {}
+        self._scenes, self._references, self._renders = {}, {}, {}
 
     def scene(self, name):
         """The test scene NAME (test_scenes/NAME.py), built once."""
@@ -43,12 +43,16 @@ class SlideContext:
         return self._scenes[name]
 
     def render(self, name, mode="SSR", **settings):
-        """A still of scene NAME in comparison MODE (settings.COMPARISON_MODES) with chain SETTINGS."""
-        request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
-                                settings=replace(ChainSettings(), **settings))
-        started = time.perf_counter()
-        images, timer = render_mode(self.scene(name), mode, request)
-        return Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
+        """A still of scene NAME in comparison MODE (settings.COMPARISON_MODES) with chain SETTINGS,
+        rendered once per run (a still is the same image every time)."""
+        key = (name, mode, tuple(sorted(settings.items())))
+        if key not in self._renders:
+            request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
+                                    settings=replace(ChainSettings(), **settings))
+            started = time.perf_counter()
+            images, timer = render_mode(self.scene(name), mode, request)
+            self._renders[key] = Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
+        return self._renders[key]
 
     def error(self, name, render):
         """FLIP and relative MAE on the reflective pixels against the Cycles reference of NAME."""
