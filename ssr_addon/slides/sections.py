@@ -1,6 +1,7 @@
-"""The deck's comparisons, one builder per slide (a function, or a row of _MODE_SLIDES). Each returns a section: the deck's title, the
-images side by side ({label, file}), the numbers measured and a caption whose {fields} are
-those numbers (page.py fills them in, so the page shows exactly what slides.json holds)."""
+"""The deck's comparisons, one builder per slide (a function, or a row of _MODE_SLIDES). Each
+returns a section: the deck's title, the images side by side ({label, file}), the numbers
+measured and a caption whose {fields} are those numbers (page.py fills them in, so the page
+shows exactly what slides.json holds)."""
 import numpy as np
 
 from ..bench.images import display
