@@ -10,17 +10,14 @@ cheap pass. So the second table runs the same frames again with nothing timed in
 waits once: the chain's milliseconds per frame against a copy pass timed the same way.
 """
 import argparse
-import statistics
 
-from common import SIZE, upscaled_passes
+from common import upscaled_passes
 
-from ssr_addon.bench import copy_pass_ms, queued_copy_pass_ms
-from ssr_addon.chain import ChainInputs, ChainState, run_chain
-from ssr_addon.gpu_backend import StageTimer, describe_gpu
+from ssr_addon.bench.speed import (CHAIN_STAGES, COPY_PASS_LARGE, chain_stage_ms, copy_pass_ms, queued_copy_pass_ms,
+                                   queued_frame_ms)
+from ssr_addon.gpu_backend import describe_gpu
 from ssr_addon.outputs import rewrite_readme_block
 from ssr_addon.params import PRESETS, preset
-
-STAGES = ("hiz", "color_pyramid", "trace", "resolve", "spatial", "temporal", "convergence", "composite")
 
 
 def main():
@@ -34,24 +31,14 @@ def main():
     rows, queued = [], {}
     for name in arguments.preset:
         settings = preset(name)
-        inputs = ChainInputs.from_passes(passes, settings)
-        state = ChainState()
-        state.begin_frame(0)
-        run_chain(inputs, settings, state)  # compiles shaders, fills the history
-        timings = {stage: [] for stage in STAGES}
-        for frame in range(1, arguments.frames + 1):
-            state.begin_frame(frame)
-            timer = StageTimer()
-            run_chain(inputs, settings, state, timer)
-            for stage in STAGES:
-                timings[stage].append(timer.milliseconds.get(stage, 0.0))
-        rows.append((name, {stage: statistics.median(values) for stage, values in timings.items()}))
+        medians, inputs, state = chain_stage_ms(passes, settings, arguments.frames)
+        rows.append((name, medians))
         queued[name] = queued_frame_ms(inputs, settings, state, arguments.frames)
-    copy_ms = copy_pass_ms(SIZE)
-    queued_copy_ms = queued_copy_pass_ms(SIZE)
-    lines = [f"$ make bench-chain    # on {describe_gpu()['renderer']}", f"inputs: {SIZE[0]}x{SIZE[1]}",
+    copy_ms = copy_pass_ms(COPY_PASS_LARGE)
+    queued_copy_ms = queued_copy_pass_ms(COPY_PASS_LARGE)
+    lines = [f"$ make bench-chain    # on {describe_gpu()['renderer']}", f"inputs: {COPY_PASS_LARGE[0]}x{COPY_PASS_LARGE[1]}",
              f"full-screen copy pass: {copy_ms:.2f} ms", "",
-             f"{'preset':<10}" + "".join(f"{stage:>15}" for stage in STAGES) + f"{'total':>15}"]
+             f"{'preset':<10}" + "".join(f"{stage:>15}" for stage in CHAIN_STAGES) + f"{'total':>15}"]
     for name, medians in rows:
         total = sum(medians.values())
         cells = "".join(f"{ms:8.2f} ({ms / copy_ms:4.1f}x)" for ms in medians.values())
@@ -63,16 +50,6 @@ def main():
     print(text)
     if arguments.readme:
         rewrite_readme_block(arguments.readme, arguments.block, f"```\n{text}\n```", "Benchmarks")
-
-
-def queued_frame_ms(inputs, settings, state, frames):
-    """Milliseconds per frame of FRAMES more frames of STATE's shot, timed with one wait at the end."""
-    timer = StageTimer()
-    for frame in range(frames):
-        state.begin_frame(frames + 1 + frame)
-        outputs = run_chain(inputs, settings, state)
-    timer.lap("frames", outputs.final_tx)
-    return timer.milliseconds["frames"] / frames
 
 
 if __name__ == "__main__":

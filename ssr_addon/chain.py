@@ -17,7 +17,7 @@ import numpy as np
 from .convergence import ConvergenceCheck
 from .frame_sequence import FrameSequence
 from .gpu_backend import TexturePool, lap, uniform_buffer, upload
-from .gpu_params import MAX_PYRAMID_LEVELS
+from .gpu_params import MAX_PYRAMID_LEVELS, RAY_SAMPLING_CODES
 from .shaders import DFG_SIZE, get_pass
 
 
@@ -207,7 +207,8 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "trace_stride": settings.trace_stride, "trace_steps": settings.trace_steps,
         "refine_steps": settings.refine_steps, "border_fade": settings.border_fade,
         "camera_facing_fade": settings.camera_facing_fade, "max_roughness": settings.max_roughness,
-        "use_importance_sampling": settings.use_importance_sampling, "resolve_samples": settings.resolve_samples,
+        "use_importance_sampling": settings.use_importance_sampling,
+        "ray_sampling": RAY_SAMPLING_CODES[settings.ray_sampling], "resolve_samples": settings.resolve_samples,
         "use_cone_filter": settings.use_cone_filter, "color_levels": len(color_rects),
         "use_firefly_guard": settings.use_firefly_guard, "denoise_radius": settings.denoise_radius,
         "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,

@@ -61,6 +61,8 @@ def build_parser():
     slides.add_argument("--out", required=True, help="output folder")
     slides.add_argument("--resolution", help="WIDTHxHEIGHT (default: 480x270; 128x72 with --quick)")
     slides.add_argument("--quick", action="store_true", help="small images and few samples, for a quick check")
+    slides.add_argument("--sections", nargs="+", metavar="ID",
+                        help="render only these sections (their ids are the page's anchors, e.g. temporal_filter)")
     preview = commands.add_parser("preview", help="what the live viewport shows: the camera view captured from "
                                                   "EEVEE's viewport and refined until converged, with timings")
     preview.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
@@ -110,7 +112,7 @@ def run(argv=None):
     if arguments.command == "slides":
         from .slides import run_slides
         return run_slides(arguments.out, parse_resolution(arguments.resolution) if arguments.resolution else None,
-                          arguments.quick)
+                          arguments.quick, arguments.sections)
     request = RenderRequest(
         out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
         resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,

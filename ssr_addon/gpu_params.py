@@ -7,6 +7,8 @@ the Python side packs by name: a field missing from `pack_params` is an error.
 import numpy as np
 
 MAX_PYRAMID_LEVELS = 16
+# params.ray_sampling: the code of each ChainSettings.ray_sampling, #defined as RAY_SAMPLING_<NAME>.
+RAY_SAMPLING_CODES = {"halton": 0, "random": 1, "uniform": 2}
 
 # (GLSL type, name, comment); arrays as "vec4[N]". std140 offsets are computed below.
 PARAMS_FIELDS = (
@@ -37,6 +39,7 @@ PARAMS_FIELDS = (
     ("float", "camera_facing_fade", "fade rays pointing back at the camera"),
     ("float", "max_roughness", "rougher pixels keep the probe/world reflection"),
     ("int", "use_importance_sampling", "GGX lobe samples (1) or mirror directions (0)"),
+    ("int", "ray_sampling", "RAY_SAMPLING_* (RAY_SAMPLING_CODES): how lobe directions are drawn"),
     ("int", "resolve_samples", "rays each pixel reuses in the resolve"),
     ("int", "use_cone_filter", "read hits as cones from the colour pyramid"),
     ("int", "color_levels", "levels in the colour pyramid"),
@@ -155,7 +158,9 @@ LAMP_BLOCK = Std140Struct("LampBlock", LAMP_BLOCK_FIELDS, nested=(LAMP_DATA,))
 
 def glsl_struct():
     """The SSRParams struct, for GPUShaderCreateInfo.typedef_source."""
-    return f"#define MAX_PYRAMID_LEVELS {MAX_PYRAMID_LEVELS}\n" + PARAMS.glsl()
+    defines = {"MAX_PYRAMID_LEVELS": MAX_PYRAMID_LEVELS,
+               **{f"RAY_SAMPLING_{name.upper()}": code for name, code in RAY_SAMPLING_CODES.items()}}
+    return "".join(f"#define {name} {value}\n" for name, value in defines.items()) + PARAMS.glsl()
 
 
 def lamp_block_glsl():

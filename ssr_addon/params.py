@@ -35,6 +35,12 @@ class ChainSettings:
     hiz_max_iterations: int = _setting(96, "Hi-Z tracing: most cell visits per ray", 8, 1024)
     use_importance_sampling: bool = _setting(
         True, "Sample ray directions from the GGX lobe (Halton sequence); off: mirror directions only")
+    ray_sampling: str = _setting(
+        "halton", "How importance-sampled ray directions are drawn (the deck's choice is Halton points of "
+                  "the GGX lobe; the others are there to compare it with)",
+        items=(("halton", "GGX + Halton", "Visible GGX normals at the points of a Halton (2, 3) sequence"),
+               ("random", "GGX + Random", "Visible GGX normals at independent random points"),
+               ("uniform", "Uniform", "Directions spread evenly over the hemisphere, whatever the surface")))
     half_resolution: bool = _setting(True, "Trace one ray per 2x2 pixels and resolve at full resolution")
     thickness: float = _setting(
         0.2, "Assumed depth of every surface in the depth buffer, in scene units", 0.001, 100.0)

@@ -38,7 +38,7 @@ class PassDeclaration:
     uses_lamp_block: bool = False  # reads `lamp_block` (gpu_params.LAMP_BLOCK) instead of `params`
 
 
-_TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "linear_march_lib.glsl",
+_TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "surface_ray_lib.glsl", "linear_march_lib.glsl",
                     "hiz_march_lib.glsl", "ggx_lib.glsl")
 
 PASSES = {
@@ -52,6 +52,12 @@ PASSES = {
     "trace": PassDeclaration("trace.glsl", ("depth_tx", "normal_tx", "roughness_tx", "hiz_tx"),
                              ("ray_hit_img", "ray_dir_img", "ray_stats_img"), libraries=_TRACE_LIBRARIES,
                              defines=(("LOBE_TAIL", repr(LOBE_TAIL)),)),
+    # One ray's Hi-Z march replayed visit by visit, for the deck's diagram (hiz_walk.py).
+    "hiz_walk": PassDeclaration("hiz_walk.glsl", ("depth_tx", "normal_tx", "hiz_tx"),
+                                ("walk_img", "walk_span_img", "walk_ray_img"),
+                                libraries=("common_lib.glsl", "screen_ray_lib.glsl", "surface_ray_lib.glsl",
+                                           "hiz_walk_lib.glsl", "hiz_march_lib.glsl"),
+                                push_constants=(("IVEC2", "walk_pixel"),)),
     "resolve": PassDeclaration("resolve.glsl", ("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx",
                                                 "roughness_tx", "color_tx"),
                                ("reflection_img", "reflection_hit_img"),

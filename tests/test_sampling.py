@@ -38,6 +38,35 @@ def test_sample_histogram_matches_the_ggx_pdf(gpu_backend, roughness):
     np.testing.assert_allclose(arrays["ray_hit"][..., 2].ravel(), expected, rtol=2e-3)
 
 
+def test_random_points_follow_the_ggx_pdf_too(gpu_backend):
+    """ray_sampling=random (the slides' comparison) draws the same lobe, at independent points:
+    the KS distance stays within its 99.9 % bound for a sample this size, 1.95 / sqrt(n)."""
+    depth, normal, projection = facing_plane()
+    arrays, _ = run_synthetic_chain(depth, normal, np.full_like(depth, 0.5), projection,
+                                    ChainSettings(max_roughness=1.0, ray_sampling="random", **ONE_RAY_PER_PIXEL))
+    h = half_vectors(np.array([0.0, 0.0, 1.0]), arrays["ray_dir"][..., :3].reshape(-1, 3))
+    uniform = np.sort(ggx_normal_cdf(h[:, 2], 0.5 ** 2))
+    ks = np.abs(uniform - (np.arange(uniform.size) + 0.5) / uniform.size * (1.0 - LOBE_TAIL)).max()
+    assert ks < 1.95 / np.sqrt(uniform.size), f"Kolmogorov-Smirnov distance {ks:.4f}"
+
+
+def test_uniform_directions_spread_evenly_over_the_hemisphere(gpu_backend):
+    """ray_sampling=uniform: cos(theta) of the ray about the normal is uniform on
+    [LOBE_TAIL, 1] (the grazing band is cut like the lobe's tail), azimuth uniform,
+    and every ray carries that constant pdf, whatever the roughness."""
+    depth, normal, projection = facing_plane()
+    arrays, _ = run_synthetic_chain(depth, normal, np.full_like(depth, 0.2), projection,
+                                    ChainSettings(max_roughness=1.0, ray_sampling="uniform", **ONE_RAY_PER_PIXEL))
+    direction = arrays["ray_dir"][..., :3].reshape(-1, 3)
+    cos_theta = np.sort(direction[:, 2])
+    n = cos_theta.size
+    ks = np.abs((cos_theta - LOBE_TAIL) / (1.0 - LOBE_TAIL) - (np.arange(n) + 0.5) / n).max()
+    assert ks < 0.02, f"Kolmogorov-Smirnov distance {ks:.4f}"
+    azimuth = np.sort((np.arctan2(direction[:, 1], direction[:, 0]) / (2 * np.pi)) % 1.0)
+    assert np.abs(azimuth - (np.arange(n) + 0.5) / n).max() < 0.02
+    np.testing.assert_allclose(arrays["ray_hit"][..., 2].ravel(), 1.0 / (2 * np.pi * (1.0 - LOBE_TAIL)), rtol=1e-5)
+
+
 def test_rays_keep_their_pdf_at_oblique_views(gpu_backend):
     depth, normal, projection = corridor()
     roughness = np.full_like(depth, 0.35)

@@ -7,7 +7,7 @@ import re
 import numpy as np
 import pytest
 
-import OpenImageIO as oiio
+from PIL import Image
 from conftest import run_cli
 from ssr_addon.slides import QUICK_RESOLUTION
 from ssr_addon.slides.page import caption_text
@@ -33,12 +33,22 @@ def test_every_section_is_on_the_page_in_the_decks_order(slides):
 
 
 def test_every_image_the_page_names_exists(slides):
+    """Frames and animations at the run's size (every frame of an animation), insets an
+    enlarged part of one, charts a readable size."""
     out, report, page = slides
-    sources = re.findall(r"<img src='([^']+)'", page)
-    assert sorted(sources) == sorted(image["file"] for section in report["sections"] for image in section["images"])
-    for source in sources:
-        spec = oiio.ImageInput.open(str(out / source)).spec()
-        assert (spec.width, spec.height) == QUICK_RESOLUTION, source
+    sources = re.findall(r"<img class='[a-z]+' src='([^']+)'", page)
+    images = [image for section in report["sections"] for image in section["images"]]
+    assert sorted(sources) == sorted(image["file"] for image in images)
+    for image in images:
+        with Image.open(out / image["file"]) as opened:
+            size, frames = opened.size, getattr(opened, "n_frames", 1)
+        if image["kind"] in ("frame", "animation"):
+            assert size == QUICK_RESOLUTION, image
+        elif image["kind"] == "inset":
+            assert size[0] > QUICK_RESOLUTION[0] // 4 and size[1] > QUICK_RESOLUTION[1] // 4, image
+        else:
+            assert image["kind"] == "chart" and size[0] >= 800, image
+        assert (frames > 1) == (image["kind"] == "animation"), image
 
 
 def test_captions_show_the_numbers_in_slides_json(slides):
@@ -59,9 +69,11 @@ def test_ssr_beats_no_ssr_and_the_cubemap_on_the_mirror_floor(slides):
     assert numbers["cubemaps"]["ssr_flip"] < numbers["cubemaps"]["cubemap_flip"]
 
 
-def test_bad_slides_input_gets_one_clear_line(tmp_path):
-    result = run_cli("slides", "--out", tmp_path / "out", "--resolution", "64by36", check=False)
+@pytest.mark.parametrize("arguments, named", [(("--resolution", "64by36"), "64by36"),
+                                              (("--sections", "temporal_filter", "hizz"), "hizz")])
+def test_bad_slides_input_gets_one_clear_line(tmp_path, arguments, named):
+    result = run_cli("slides", "--out", tmp_path / "out", *arguments, check=False)
     lines = [line for line in result.stderr.splitlines() if line.strip() and "EGL" not in line]
     assert result.returncode == 2
-    assert len(lines) == 1 and lines[0].startswith("error:") and "64by36" in lines[0], result.stderr
+    assert len(lines) == 1 and lines[0].startswith("error:") and named in lines[0], result.stderr
     assert not (tmp_path / "out").exists()

@@ -6,14 +6,14 @@ from .images import display
 from .stability import FLICKER_LIMIT, SEAM_LIMIT
 
 
-def _pyplot():
+def load_pyplot():
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as pyplot
     return pyplot
 
 
-def _save_figure(figure, path, palette=False):
+def save_figure(figure, path, palette=False):
     """Write FIGURE as a PNG, atomically; PALETTE: 256 colours (a contact sheet shrinks about threefold)."""
     with written_together([path]) as (partial,):
         if palette:
@@ -23,12 +23,12 @@ def _save_figure(figure, path, palette=False):
             Image.fromarray(pixels).quantize(colors=256).save(partial, format="PNG", optimize=True)
         else:
             figure.savefig(partial, format="png")
-    _pyplot().close(figure)
+    load_pyplot().close(figure)
 
 
 def chart_speed_vs_accuracy(report, path):
     """Milliseconds per frame against FLIP on reflective pixels, one point per contender, Pareto front joined."""
-    pyplot = _pyplot()
+    pyplot = load_pyplot()
     entries = [e for e in report["contenders"] if e["flip_reflective"] is not None]
     figure, axes = pyplot.subplots(figsize=(9, 4.5), dpi=100)
     # Points carry numbers, named beside the plot: the names would overlap where points crowd.
@@ -52,7 +52,7 @@ def chart_speed_vs_accuracy(report, path):
     axes.grid(True, which="both", alpha=0.3)
     axes.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), frameon=False)
     figure.tight_layout()
-    _save_figure(figure, path)
+    save_figure(figure, path)
 
 
 def contact_sheet(sheet, path):
@@ -60,7 +60,7 @@ def contact_sheet(sheet, path):
 
     The reference row shows the reflective-pixel mask in place of an error map.
     """
-    pyplot = _pyplot()
+    pyplot = load_pyplot()
     from matplotlib import colormaps
     scenes = list(sheet)
     names = list(sheet[scenes[0]])
@@ -85,12 +85,12 @@ def contact_sheet(sheet, path):
                     axes.set_title(f"{scene}: {('image', 'mask / FLIP')[offset]}", fontsize=6, pad=2)
         figure.text(0.01, 1 - (row + 0.8) * tile_inches[1] / figure.get_figheight(), name, fontsize=7,
                     va="center")
-    _save_figure(figure, path, palette=True)
+    save_figure(figure, path, palette=True)
 
 
 def chart_stability(stability, path):
     """Per case: error against the fallback's, seam strength, flicker and ghosting, with the tested limits."""
-    pyplot = _pyplot()
+    pyplot = load_pyplot()
     cases = stability["cases"]
     names = [case.removeprefix("stability_") for case in cases]
     positions = np.arange(len(cases))
@@ -120,4 +120,23 @@ def chart_stability(stability, path):
         panel.set_xticks(positions, names, fontsize=7, rotation=20)
         panel.tick_params(axis="y", labelsize=7)
     figure.tight_layout()
-    _save_figure(figure, path)
+    save_figure(figure, path)
+
+
+def chart_stage_costs(stages, deck, path, title):
+    """Bars of each stage's cost in full-screen copy passes (STAGES: {stage: copies}), the total
+    beside it, and DECK's ({label: copies}) for comparison."""
+    pyplot = load_pyplot()
+    labels = [*stages, "total", *deck]
+    values = [*stages.values(), sum(stages.values()), *deck.values()]
+    colours = ["tab:blue"] * len(stages) + ["tab:red"] + ["tab:grey"] * len(deck)
+    figure, axes = pyplot.subplots(figsize=(9, 3.6), dpi=100)
+    axes.bar(range(len(values)), values, color=colours)
+    for position, value in enumerate(values):
+        axes.annotate(f"{value:.1f}", (position, value), ha="center", va="bottom", fontsize=8)
+    axes.set_xticks(range(len(labels)), labels, fontsize=8, rotation=20)
+    axes.set_ylabel("full-screen copy passes")
+    axes.set_title(title, fontsize=9)
+    axes.grid(True, axis="y", alpha=0.3)
+    figure.tight_layout()
+    save_figure(figure, path)

@@ -1,8 +1,16 @@
-"""Speed's yardstick: the full-screen copy pass, timed on this GPU in the same run."""
+"""Speed's yardstick, the full-screen copy pass timed on this GPU in the same run, and the chain's
+milliseconds per stage at the deck's 1600x900 (make bench-chain, the slides' Performance)."""
 import statistics
 
+import numpy as np
+
+from ..chain import ChainInputs, ChainState, run_chain
 from ..gpu_backend import StageTimer, empty_texture, ensure_backend
+from ..passes import FramePasses, render_passes
 from ..shaders import get_pass
+
+# The chain's stages as StageTimer names them, in order.
+CHAIN_STAGES = ("hiz", "color_pyramid", "trace", "resolve", "spatial", "temporal", "convergence", "composite")
 
 COPY_PASS_REPEATS = 20
 COPY_PASS_LARGE = (1600, 900)
@@ -46,3 +54,45 @@ def _copy_pass(size):
 
 def _size_label(size):
     return f"{size[0]}x{size[1]}"
+
+
+def upscaled_passes(scene, size=COPY_PASS_LARGE, factor=5):
+    """SCENE's EEVEE passes rendered at SIZE / FACTOR and repeated up to SIZE: real content at the
+    pixel count being timed, without a minutes-long software render."""
+    small = render_passes(scene, "eevee", samples=4, resolution=(size[0] // factor, size[1] // factor))
+    fields = {}
+    for name, value in vars(small).items():
+        if isinstance(value, np.ndarray) and value.shape[:2] == small.depth.shape:
+            value = value.repeat(factor, axis=0).repeat(factor, axis=1)
+        fields[name] = value
+    ensure_backend()
+    return FramePasses(**fields)
+
+
+def chain_stage_ms(passes, settings, frames):
+    """Median milliseconds per stage (CHAIN_STAGES) over FRAMES frames of a still shot of PASSES,
+    after a first frame that compiles the shaders and fills the history; also returns the
+    shot's ChainInputs and ChainState, to go on timing it (queued_frame_ms)."""
+    inputs = ChainInputs.from_passes(passes, settings)
+    state = ChainState()
+    state.begin_frame(0)
+    run_chain(inputs, settings, state)
+    timings = {stage: [] for stage in CHAIN_STAGES}
+    for frame in range(1, frames + 1):
+        state.begin_frame(frame)
+        timer = StageTimer()
+        run_chain(inputs, settings, state, timer)
+        for stage in CHAIN_STAGES:
+            timings[stage].append(timer.milliseconds.get(stage, 0.0))
+    return {stage: statistics.median(values) for stage, values in timings.items()}, inputs, state
+
+
+def queued_frame_ms(inputs, settings, state, frames):
+    """Milliseconds per frame of FRAMES more frames of STATE's shot, timed with one wait at the end."""
+    first = state.sequence.frame + 1
+    timer = StageTimer()
+    for frame in range(first, first + frames):
+        state.begin_frame(frame)
+        outputs = run_chain(inputs, settings, state)
+    timer.lap("frames", outputs.final_tx)
+    return timer.milliseconds["frames"] / frames

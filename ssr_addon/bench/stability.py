@@ -118,8 +118,13 @@ def flicker(result):
     as it shows.
     """
     mask = result["mask"]
-    shown = np.stack([layer[mask] for layer in result["shown_reflections"]])
-    level = float(np.mean(result["image_levels"]))
+    return relative_flicker(np.stack([layer[mask] for layer in result["shown_reflections"]]),
+                            float(np.mean(result["image_levels"])))
+
+
+def relative_flicker(shown, level):
+    """Mean change from one frame to the next of SHOWN (frames x pixels), relative to LEVEL, the
+    pixels' mean brightness; None where they are black."""
     return float(np.abs(np.diff(shown, axis=0)).mean() / level) if level > 1e-6 else None
 
 

@@ -11,6 +11,20 @@
  * linear march; the sky is never hit. tests/oracles.py walks every pixel to
  * check this. */
 
+/* What a cell visit did, for the recording hook below. */
+#define HIZ_VISIT_SKIP 1    /* in front of the whole cell: skipped, one level up (at most the top) */
+#define HIZ_VISIT_DESCEND 2 /* may intersect (level > 0): one level down */
+#define HIZ_VISIT_BEHIND 3  /* level 0: the ray passes behind the pixel's surface */
+#define HIZ_VISIT_HIT 4     /* level 0: hit, the march ends */
+
+/* Recording hook: HIZ_WALK_VISIT(iteration, level, cell, t, t_next, outcome) runs once per
+ * cell visit (iteration counts from 1, as `iterations`; cell is the level's texel, t to
+ * t_next the ray's span in it before the visit moves on). Empty, so free, unless a pass
+ * defines it before this file (hiz_walk_lib.glsl, for the deck's diagram). */
+#ifndef HIZ_WALK_VISIT
+#  define HIZ_WALK_VISIT(iteration, level, cell, t, t_next, outcome)
+#endif
+
 /* The t at which the ray leaves the cell of `size` pixels containing `cell`. */
 float cell_exit(ScreenRay ray, vec2 cell, float size)
 {
@@ -54,6 +68,7 @@ float march_hiz(ScreenRay ray, out float iterations, out float highest_level)
     float nearest = hiz_min_depth(level, cell);
     if (max(depth_in, depth_out) < nearest) {
       /* Entirely in front of everything in the cell: skip it and climb. */
+      HIZ_WALK_VISIT(iterations, level, cell, t, t_next, HIZ_VISIT_SKIP);
       t = t_next + t_nudge;
       level = min(level + 1, top_level);
       highest_level = max(highest_level, float(level));
@@ -62,13 +77,16 @@ float march_hiz(ScreenRay ray, out float iterations, out float highest_level)
       if (min(depth_in, depth_out) < nearest + thickness && !is_background(nearest)) {
         /* Hit: where the ray crosses the surface depth inside this pixel. */
         float t_surface = depth_out > depth_in ? ray_t_at_depth(ray, nearest) : t;
+        HIZ_WALK_VISIT(iterations, level, cell, t, t_next, HIZ_VISIT_HIT);
         return clamp(t_surface, t, t_next);
       }
+      HIZ_WALK_VISIT(iterations, level, cell, t, t_next, HIZ_VISIT_BEHIND);
       t = t_next + t_nudge; /* passes behind this pixel's surface */
     }
     else {
       /* May intersect: jump to where the ray reaches the cell's nearest depth
        * (nothing before it can be hit), then look at the finer level. */
+      HIZ_WALK_VISIT(iterations, level, cell, t, t_next, HIZ_VISIT_DESCEND);
       if (depth_out > depth_in && depth_in < nearest) {
         t = min(max(t, ray_t_at_depth(ray, nearest)), t_next);
       }

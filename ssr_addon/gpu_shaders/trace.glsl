@@ -60,8 +60,21 @@ bool is_expensive(float roughness, ivec2 pixel)
 vec2 lobe_sample(ivec2 pixel)
 {
   uint rays_per_pixel = uint(params.trace_scale * params.trace_scale);
-  vec2 u = sample_point(pixel, params.sample_index / rays_per_pixel);
+  uint index = params.sample_index / rays_per_pixel;
+  /* RAY_SAMPLING_RANDOM, for comparison: independent points, no strata (seed 0 is the rotation). */
+  vec2 u = params.ray_sampling == RAY_SAMPLING_RANDOM ? pixel_noise(pixel, index + 1u) : sample_point(pixel, index);
   return vec2(u.x * (1.0 - LOBE_TAIL), u.y);
+}
+
+/* RAY_SAMPLING_UNIFORM, for comparison: a direction spread evenly over the hemisphere
+ * around the normal, blind to the lobe ("Importance Sampling" slides). lobe_sample's
+ * u.x < 1 - LOBE_TAIL leaves out the grazing band cos(theta) < LOBE_TAIL, so the pdf
+ * is 1 / (2 pi (1 - LOBE_TAIL)). */
+vec3 uniform_hemisphere(vec3 normal, vec2 u)
+{
+  float cos_theta = 1.0 - u.x, sin_theta = sqrt(max(0.0, 1.0 - u.x * u.x));
+  float phi = 2.0 * M_PI * u.y;
+  return tangent_frame(normal) * vec3(sin_theta * cos(phi), sin_theta * sin(phi), cos_theta);
 }
 
 void main()
@@ -70,28 +83,21 @@ void main()
   ray_dir_img = vec4(0.0);
   ray_stats_img = vec4(0.0);
   ivec2 pixel = ray_origin_pixel(ivec2(gl_FragCoord.xy));
-  float depth = texelFetch(depth_tx, pixel, 0).r;
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
-  if (is_background(depth) || roughness > params.max_roughness) {
-    return;
+  vec3 origin, incident, normal;
+  if (roughness > params.max_roughness || !reflecting_surface(pixel, origin, incident, normal)) {
+    return; /* too rough, or no ray from this pixel (surface_ray_lib.glsl) */
   }
-  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
-  vec3 origin = view_position(uv, depth);
-  vec3 incident = view_incident(uv);
-  vec3 world_normal = texelFetch(normal_tx, pixel, 0).xyz;
-  if (!(dot(world_normal, world_normal) > 0.25)) {
-    return; /* no surface here (the world, or an unfilled pixel) */
-  }
-  vec3 normal = view_normal(world_normal);
   vec3 to_eye = -incident;
   float n_dot_v = dot(normal, to_eye);
-  if (n_dot_v <= 0.0) {
-    return; /* the shading normal faces away from the camera */
-  }
 
   vec3 direction;
   float pdf;
-  if (params.use_importance_sampling != 0) {
+  if (params.use_importance_sampling != 0 && params.ray_sampling == RAY_SAMPLING_UNIFORM) {
+    direction = uniform_hemisphere(normal, lobe_sample(pixel));
+    pdf = 1.0 / (2.0 * M_PI * (1.0 - LOBE_TAIL));
+  }
+  else if (params.use_importance_sampling != 0) {
     float alpha = ggx_alpha(roughness);
     mat3 frame = tangent_frame(normal);
     vec3 half_vector = frame * sample_visible_normal(transpose(frame) * to_eye, alpha,

@@ -1,14 +1,17 @@
 """`python -m ssr_addon slides --out DIR`: the deck's comparisons, each rendered on a scene built
-to show it and measured, as DIR/index.html (one section per slide), its PNGs and DIR/slides.json
-(every number the page shows).
+to show it and measured, as DIR/index.html (one section per slide), its PNGs and GIFs and
+DIR/slides.json (every number the page shows).
 
-The sections so far follow the deck's first part: SSR on and off, the cubemap and planar
-baselines, the basic algorithm's inputs, the linear raymarch and cheap against expensive rays
-(sections.SECTIONS). They share the bench's measuring parts: its Cycles references, metrics and
-display transform.
+The sections follow the deck (sections.SECTIONS): SSR on and off, the cubemap and planar
+baselines, the basic algorithm's inputs, the linear raymarch, cheap against expensive rays,
+importance sampling, reusing neighbours' rays, the temporal filter and its reprojection, sparse
+tracing, filtered importance sampling, performance and the limits of screen space. They share
+the bench's measuring parts: its Cycles references, metrics, charts and display transform.
+`--sections ID ...` renders some of them only.
 """
 import os
 
+from ..errors import SSRError
 from ..outputs import prepare_output_folder, write_json
 from .context import SlideContext
 from .page import write_page
@@ -18,14 +21,25 @@ QUICK_RESOLUTION = (128, 72)
 DEFAULT_RESOLUTION = (480, 270)
 
 
-def run_slides(out_dir, resolution=None, quick=False, log=print):
-    """Render and measure every section into OUT_DIR; returns the slides.json content."""
+def section_ids():
+    """The id of every section, in the deck's order: what --sections accepts."""
+    return [build.__name__ for build in SECTIONS]
+
+
+def run_slides(out_dir, resolution=None, quick=False, only=None, log=print):
+    """Render and measure every section (or those ONLY names) into OUT_DIR; returns the
+    slides.json content."""
+    unknown = sorted(set(only or ()) - set(section_ids()))
+    if unknown:
+        raise SSRError(f"--sections: no section {', '.join(unknown)}; expected some of {', '.join(section_ids())}")
     resolution = resolution or (QUICK_RESOLUTION if quick else DEFAULT_RESOLUTION)
     prepare_output_folder(out_dir)
     context = SlideContext(out_dir, resolution, quick, log)
     sections = []
     for build in SECTIONS:
-        section = build(context)
+        if only and build.__name__ not in only:
+            continue
+        section = {"id": build.__name__, **build(context)}
         log(f"{section['title']}: " + ", ".join(f"{key} {value}" for key, value in section["numbers"].items()))
         sections.append(section)
     report = {"resolution": list(resolution), "quick": quick, "eevee_samples": context.samples,

@@ -11,11 +11,16 @@ from ..bench.images import display
 from ..bench.metrics import accuracy
 from ..bench.references import DEFAULT_CACHE, render_reference
 from ..bench.scenes import resolve_scene
+from ..chain import ChainInputs, ChainState, run_chain
 from ..errors import SSRError
+from ..gpu_backend import StageTimer
 from ..operators import render_mode
 from ..params import ChainSettings
-from ..render_job import RenderRequest
+from ..passes import lamp_world_for_run
+from ..render_job import RenderRequest, chain_images
 from ..scene_io import load_scene
+
+GIF_FRAME_MS = 250  # an animation's frames, slowed so each can be looked at
 
 
 @dataclass
@@ -33,8 +38,10 @@ class SlideContext:
     def __init__(self, out_dir, resolution, quick, log):
         self.out_dir, self.resolution, self.quick, self.log = out_dir, resolution, quick, log
         self.samples = 4 if quick else 16
-        self.reference_samples = 64 if quick else 1024
-        self._scenes, self._references, self._renders = {}, {}, {}
+        # 256: a new scene's reference takes minutes, not a quarter of an hour, on two CPU cores; the
+        # bench's references (2048 samples) are the ones its precise numbers come from.
+        self.reference_samples = 64 if quick else 256
+        self._scenes, self._references, self._renders, self._chains = {}, {}, {}, {}
 
     def scene(self, name):
         """The test scene NAME (test_scenes/NAME.py), built once."""
@@ -54,22 +61,72 @@ class SlideContext:
             self._renders[key] = Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
         return self._renders[key]
 
+    def chain(self, name, frames=1, **settings):
+        """The chain alone, with SETTINGS, on the passes of NAME's SSR still (render()), run as FRAMES
+        frames of a camera that holds still (a still when 1); returns a Render per frame, its
+        milliseconds the chain's own. Variants of the chain share one engine render this way, and
+        each runs once per run."""
+        key = (name, frames, tuple(sorted(settings.items())))
+        if key not in self._chains:
+            self._chains[key] = self._run_chain(name, frames, settings)
+        return self._chains[key]
+
+    def _run_chain(self, name, frames, settings):
+        passes = self.render(name).images["passes"]
+        chain_settings = replace(ChainSettings(), **settings)
+        inputs = ChainInputs.from_passes(passes, chain_settings)
+        state = ChainState.still() if frames == 1 else ChainState()
+        renders = []
+        for frame in range(1, frames + 1):
+            state.begin_frame(frame)
+            timer = StageTimer()
+            outputs = run_chain(inputs, chain_settings, state, timer)
+            images = dict(chain_images(passes, outputs, chain_settings), passes=passes)
+            renders.append(Render(images, dict(timer.milliseconds), sum(timer.milliseconds.values())))
+        return renders
+
+    def animation(self, name, frames, **settings):
+        """Frames FRAMES of scene NAME's own animation in SSR mode, history carried from frame to
+        frame as a batch render carries it; a Render per frame."""
+        scene = self.scene(name)
+        request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
+                                settings=replace(ChainSettings(), **settings))
+        state, renders = ChainState(), []
+        with lamp_world_for_run():
+            for frame in frames:
+                scene.frame_set(frame)
+                state.begin_frame(frame, scene.camera.name)
+                started = time.perf_counter()
+                images, timer = render_mode(scene, "SSR", request, state)
+                renders.append(Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0))
+        return renders
+
     def error(self, name, render):
         """FLIP and relative MAE on the reflective pixels against the Cycles reference of NAME."""
-        if name not in self._references:
-            scene = self.scene(name)
-            self._references[name] = render_reference(scene, resolve_scene(name), self.resolution,
-                                                      self.reference_samples, scene.frame_current, DEFAULT_CACHE,
-                                                      self.log)
-        reference = self._references[name]
+        reference = self.reference(name)
         scores, _ = accuracy(reference.image, render.final, reference.mask)
         return {"flip": round(scores["flip_reflective"], 4), "rel_mae": round(scores["mae_reflective"], 4)}
+
+    def reference(self, name, frame=None):
+        """The Cycles reference of NAME at FRAME (default: the scene's current frame), cached on disk."""
+        scene = self.scene(name)
+        frame = scene.frame_current if frame is None else frame
+        if (name, frame) not in self._references:
+            self._references[name, frame] = render_reference(scene, resolve_scene(name), self.resolution,
+                                                             self.reference_samples, frame, DEFAULT_CACHE, self.log)
+        return self._references[name, frame]
+
+    def noise(self, name, render, converged):
+        """Mean absolute difference of RENDER from CONVERGED (the chain run until settled) on the
+        reflective pixels, relative to their mean: the noise alone, without the error both share."""
+        mask = self.reference(name).mask
+        shown, settled = (r.final[mask] for r in (render, converged))
+        return round(float(np.mean(np.abs(shown - settled)) / max(np.mean(settled), 1e-6)), 4)
 
     def save(self, file_name, rgb, data=False):
         """Write RGB (scene linear, through the bench's display transform; DATA: already in [0, 1])
         as OUT_DIR/FILE_NAME, a PNG; returns FILE_NAME."""
-        shown = np.clip(rgb if data else display(rgb), 0.0, 1.0)
-        pixels = np.ascontiguousarray((shown * 255.0 + 0.5).astype(np.uint8))
+        pixels = _display_bytes(rgb, data)
         path = os.path.join(self.out_dir, file_name)
         output = oiio.ImageOutput.create(path)
         if output is None or not output.open(path, oiio.ImageSpec(pixels.shape[1], pixels.shape[0], 3, "uint8")) \
@@ -77,3 +134,25 @@ class SlideContext:
             raise SSRError(f"cannot write {path}: {oiio.geterror()}")
         output.close()
         return file_name
+
+    def save_inset(self, file_name, rgb, box, zoom=4):
+        """Write the part BOX (left, top, right, bottom as fractions of the image) of RGB, each
+        pixel ZOOM pixels wide, as a PNG: a difference too small to see at full view; returns FILE_NAME."""
+        height, width = rgb.shape[:2]
+        left, top, right, bottom = (int(round(f * n)) for f, n in zip(box, (width, height, width, height)))
+        crop = rgb[top:max(bottom, top + 1), left:max(right, left + 1)]
+        return self.save(file_name, crop.repeat(zoom, axis=0).repeat(zoom, axis=1))
+
+    def save_animation(self, file_name, frames):
+        """Write FRAMES (scene-linear RGB arrays) as a looping GIF; returns FILE_NAME."""
+        from PIL import Image  # matplotlib's image library, a dependency of the bench
+        images = [Image.fromarray(_display_bytes(rgb)) for rgb in frames]
+        path = os.path.join(self.out_dir, file_name)
+        images[0].save(path, save_all=True, append_images=images[1:], duration=GIF_FRAME_MS, loop=0)
+        return file_name
+
+
+def _display_bytes(rgb, data=False):
+    """RGB as 8-bit display values: scene linear through the bench's display transform (DATA: already in [0, 1])."""
+    shown = np.clip(rgb if data else display(rgb), 0.0, 1.0)
+    return np.ascontiguousarray((shown * 255.0 + 0.5).astype(np.uint8))

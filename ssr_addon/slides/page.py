@@ -7,6 +7,7 @@ from ..outputs import written_together
 _STYLE = """body{font-family:sans-serif;max-width:1400px;margin:2em auto;background:#fafafa;color:#222}
 section{margin-bottom:3em}.row{display:flex;flex-wrap:wrap;gap:12px}
 figure{margin:0}figure img{width:460px;image-rendering:pixelated;border:1px solid #ccc}
+figure img.chart{width:900px;image-rendering:auto}
 figcaption{font-size:90%;color:#555}p.caption{max-width:60em}"""
 
 
@@ -27,7 +28,8 @@ def write_page(path, report):
         parts.append(f"<section id='{html.escape(section['id'])}'><h2>{html.escape(section['title'])}</h2>"
                      "<div class='row'>")
         for image in section["images"]:
-            parts.append(f"<figure><img src='{html.escape(image['file'])}' alt='{html.escape(image['label'])}'>"
+            parts.append(f"<figure><img class='{html.escape(image['kind'])}' src='{html.escape(image['file'])}' "
+                         f"alt='{html.escape(image['label'])}'>"
                          f"<figcaption>{html.escape(image['label'])}</figcaption></figure>")
         parts.append(f"</div><p class='caption'>{html.escape(caption_text(section))}</p></section>")
     parts.append("</body></html>")
