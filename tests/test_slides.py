@@ -69,6 +69,27 @@ def test_ssr_beats_no_ssr_and_the_cubemap_on_the_mirror_floor(slides):
     assert numbers["cubemaps"]["ssr_flip"] < numbers["cubemaps"]["cubemap_flip"]
 
 
+def test_each_slide_shows_what_its_caption_says(slides):
+    """The deck's claims, measured on the slides' own renders: each section's caption says
+    which way the comparison goes, so a chain that broke a stage would contradict its slide."""
+    numbers = {section["id"]: section["numbers"] for section in slides[1]["sections"]}
+    sampling = numbers["importance_sampling"]
+    assert sampling["halton_noise"] < sampling["uniform_noise"]
+    assert sampling["halton_noise16"] < sampling["uniform_noise16"]
+    assert sampling["halton_noise16"] < sampling["random_noise16"]  # strata filled evenly
+    assert numbers["neighbour_reuse"]["reuse4_noise"] < numbers["neighbour_reuse"]["reuse1_noise"]
+    temporal = numbers["temporal_filter"]
+    assert temporal["on_flicker"] < temporal["off_flicker"] and temporal["on_noise"] < temporal["off_noise"]
+    assert numbers["reprojection"]["hit_flip"] < numbers["reprojection"]["surface_flip"]
+    cones = numbers["filtered_importance_sampling"]
+    assert cones["cone_noise"] < cones["monte_carlo_noise"]
+    walk = numbers["hierarchical_ray_trace"]
+    assert walk["visits"] < walk["pixel_tests"] and walk["highest_level"] >= 2
+    assert numbers["sparse_ray_tracing"]["half_trace_ms"] < numbers["sparse_ray_tracing"]["full_trace_ms"]
+    assert numbers["limits"]["fading_seam"] < numbers["limits"]["cutoff_seam"]
+    assert numbers["limits"]["hidden_flip"] < numbers["limits"]["hidden_fallback_flip"]
+
+
 @pytest.mark.parametrize("arguments, named", [(("--resolution", "64by36"), "64by36"),
                                               (("--sections", "temporal_filter", "hizz"), "hizz")])
 def test_bad_slides_input_gets_one_clear_line(tmp_path, arguments, named):

@@ -10,6 +10,7 @@ the bench's measuring parts: its Cycles references, metrics, charts and display 
 `--sections ID ...` renders some of them only.
 """
 import os
+import time
 
 from ..errors import SSRError
 from ..outputs import prepare_output_folder, write_json
@@ -39,8 +40,10 @@ def run_slides(out_dir, resolution=None, quick=False, only=None, log=print):
     for build in SECTIONS:
         if only and build.__name__ not in only:
             continue
+        started = time.perf_counter()
         section = {"id": build.__name__, **build(context)}
-        log(f"{section['title']}: " + ", ".join(f"{key} {value}" for key, value in section["numbers"].items()))
+        log(f"{section['title']} ({time.perf_counter() - started:.0f} s): "
+            + ", ".join(f"{key} {value}" for key, value in section["numbers"].items()))
         sections.append(section)
     report = {"resolution": list(resolution), "quick": quick, "eevee_samples": context.samples,
               "reference_samples": context.reference_samples, "sections": sections}

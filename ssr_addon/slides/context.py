@@ -41,13 +41,15 @@ class SlideContext:
         # 256: a new scene's reference takes minutes, not a quarter of an hour, on two CPU cores; the
         # bench's references (2048 samples) are the ones its precise numbers come from.
         self.reference_samples = 64 if quick else 256
-        self._scenes, self._references, self._renders, self._chains = {}, {}, {}, {}
+        self._scene = None  # (name, the loaded scene)
+        self._references, self._renders, self._chains = {}, {}, {}
 
     def scene(self, name):
-        """The test scene NAME (test_scenes/NAME.py), built once."""
-        if name not in self._scenes:
-            self._scenes[name] = load_scene(resolve_scene(name))
-        return self._scenes[name]
+        """The test scene NAME (test_scenes/NAME.py). Loading a scene replaces Blender's file, so
+        only the last one loaded is alive: another name builds its scene afresh."""
+        if self._scene is None or self._scene[0] != name:
+            self._scene = (name, load_scene(resolve_scene(name)))
+        return self._scene[1]
 
     def render(self, name, mode="SSR", **settings):
         """A still of scene NAME in comparison MODE (settings.COMPARISON_MODES) with chain SETTINGS,
@@ -109,11 +111,11 @@ class SlideContext:
 
     def reference(self, name, frame=None):
         """The Cycles reference of NAME at FRAME (default: the scene's current frame), cached on disk."""
-        scene = self.scene(name)
-        frame = scene.frame_current if frame is None else frame
         if (name, frame) not in self._references:
-            self._references[name, frame] = render_reference(scene, resolve_scene(name), self.resolution,
-                                                             self.reference_samples, frame, DEFAULT_CACHE, self.log)
+            scene = self.scene(name)
+            self._references[name, frame] = render_reference(
+                scene, resolve_scene(name), self.resolution, self.reference_samples,
+                scene.frame_current if frame is None else frame, DEFAULT_CACHE, self.log)
         return self._references[name, frame]
 
     def noise(self, name, render, converged):

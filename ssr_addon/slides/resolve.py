@@ -27,8 +27,8 @@ def importance_sampling(context):
                    "Rays drawn where the BRDF is large carry most of the light; drawn evenly over the "
                    "hemisphere, most of them land where the lobe is faint, and the few that count make "
                    "speckles. Noise (mean difference from the settled image on the reflective pixels, "
-                   "relative to their level) after one iteration: GGX with Halton points {halton_noise}, with random points "
-                   "{random_noise}, uniform {uniform_noise}. After 16 iterations: {halton_noise16}, "
+                   "relative to their level) after one iteration: GGX with Halton points {halton_noise}, "
+                   "with random points {random_noise}, uniform {uniform_noise}. After 16 iterations: {halton_noise16}, "
                    "{random_noise16} and {uniform_noise16}: a pixel's Halton points fill the lobe's strata "
                    "evenly, so its error falls faster than with independent random points.")
 
@@ -54,8 +54,9 @@ def sparse_ray_tracing(context):
     for half, name, label in ((False, "full", "1 ray per pixel"), (True, "half", "1 ray per 2x2 pixels")):
         render, = context.chain(GLOSSY, half_resolution=half)
         numbers.update({f"{name}_{metric}": value for metric, value in context.error(GLOSSY, render).items()})
-        numbers[f"{name}_trace_ms"] = round(render.stages_ms.get("trace", 0.0), 1)
-        numbers[f"{name}_iterations"] = render.images["stats"]["iterations"]
+        iterations = render.images["stats"]["iterations"]
+        numbers[f"{name}_trace_ms"] = round(render.stages_ms.get("trace", 0.0) / iterations, 1)
+        numbers[f"{name}_iterations"] = iterations
         images.append((f"{label}, resolved at full resolution", context.save(f"sparse_{name}.png", render.final)))
         images.append((f"{label}, enlarged", context.save_inset(f"sparse_{name}_inset.png", render.final,
                                                                  GLOSSY_INSET), "inset"))
@@ -64,8 +65,8 @@ def sparse_ray_tracing(context):
                    "quad, and every full-resolution pixel resolves its colour from the four nearest. Each "
                    "still ran until it settled ({full_iterations} and {half_iterations} iterations). "
                    "FLIP against Cycles: {full_flip} tracing every pixel, {half_flip} tracing a quarter "
-                   "(relative MAE {full_rel_mae} and {half_rel_mae}); a trace took {full_trace_ms} ms and "
-                   "{half_trace_ms} ms.")
+                   "(relative MAE {full_rel_mae} and {half_rel_mae}); an iteration's trace took {full_trace_ms} ms "
+                   "and {half_trace_ms} ms.")
 
 
 def filtered_importance_sampling(context):

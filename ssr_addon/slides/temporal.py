@@ -37,7 +37,7 @@ def reprojection(context):
     frame_numbers = list(range(scene.frame_start, scene.frame_end + 1))
     images, numbers = [], {}
     for mode, label in (("surface", "Reprojecting the reflecting surface"), ("hit", "Reprojecting the hit point")):
-        frames = context.animation(MOVING, frame_numbers, temporal_reprojection=mode)
+        frames = context.animation(MOVING, frame_numbers, temporal_reprojection=mode, noise_threshold=0.0)
         errors = []
         for frame, render in zip(frame_numbers[1:], frames[1:]):  # the first frame has no history
             reference = context.reference(MOVING, frame)
@@ -49,7 +49,9 @@ def reprojection(context):
         images.append((f"{label}, frame {frame_numbers[-1]}",
                        context.save(f"reproject_{mode}.png", frames[-1].final)))
     return section("Temporal Reprojection: the hit point, not the surface", images, numbers,
-                   "The camera slides sideways. A reflection moves across the floor differently from the "
+                   "The camera slides sideways; after a settled first frame each frame traces one "
+                   "iteration and leans on its history, as a real-time renderer does. A reflection "
+                   "moves across the floor differently from the "
                    "floor itself, so history fetched where the floor was smears the reflection; fetched "
                    "where the reflected hit point was, it lines up. FLIP against Cycles over the frames "
                    "with history: {surface_flip} reprojecting the surface, {hit_flip} reprojecting the "
