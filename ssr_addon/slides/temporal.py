@@ -10,6 +10,7 @@ from .section import CONVERGED, ONE_ITERATION, section
 
 STILL_FRAMES = 8
 MOVING = "stability_moving_camera"  # the camera slides sideways over a mirror floor with glowing blocks
+REFLECTIONS_INSET = (0.2, 0.5, 0.7, 0.85)  # the blocks' reflections in the floor
 
 
 def temporal_filter(context):
@@ -46,8 +47,9 @@ def reprojection(context):
         images.append((f"{label}, frames {frame_numbers[0]}-{frame_numbers[-1]}",
                        context.save_animation(f"reproject_{mode}.gif", [render.final for render in frames]),
                        "animation"))
-        images.append((f"{label}, frame {frame_numbers[-1]}",
-                       context.save(f"reproject_{mode}.png", frames[-1].final)))
+        images.append((f"{label}, frame {frame_numbers[-1]}, the reflections enlarged",
+                       context.save_inset(f"reproject_{mode}_inset.png", frames[-1].final, REFLECTIONS_INSET, zoom=2),
+                       "inset"))
     return section("Temporal Reprojection: the hit point, not the surface", images, numbers,
                    "The camera slides sideways; after a settled first frame each frame traces one "
                    "iteration and leans on its history, as a real-time renderer does. A reflection "
