@@ -73,7 +73,7 @@ UI_PROPERTIES = {
     "probe_object": bpy.props.PointerProperty(
         name="Cubemap Centre", type=bpy.types.Object,
         description="Object the reflection cubemap is captured around (it never reflects itself); "
-                    "empty: the centre of the scene"),
+                    "empty: free space over the middle of the scene, at the camera's height"),
     "planar_object": bpy.props.PointerProperty(
         name="Mirror Plane", type=bpy.types.Object, poll=_is_mesh,
         description="Flat mesh the planar reflection is rendered for; empty: the largest flat mesh"),

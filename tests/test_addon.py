@@ -531,6 +531,97 @@ def test_planar_baseline_matches_the_analytic_mirror_image_off_screen_too(addon)
         "screen-space tracing alone cannot reflect what is off screen"
 
 
+def _vertex_boxes(scene):
+    """World bounds (low, high) of each rendered mesh, by name, from its evaluated vertices."""
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    boxes = {}
+    for obj in scene.objects:
+        if obj.type == "MESH" and not obj.hide_render:
+            evaluated = obj.evaluated_get(depsgraph)
+            matrix = np.array(evaluated.matrix_world)
+            local = np.array([vertex.co for vertex in evaluated.data.vertices])
+            world = local @ matrix[:3, :3].T + matrix[:3, 3]
+            boxes[obj.name] = (world.min(axis=0), world.max(axis=0))
+    return boxes
+
+
+def _sphere_probe(scene, changes):
+    apply_baseline(scene, "cubemap", changes)
+    (probe,) = [obj for obj in scene.objects if obj.type == "LIGHT_PROBE"]
+    assert probe.data.type == "SPHERE" and not scene.eevee.use_raytracing
+    return probe
+
+
+def _outside(point, box, margin=1e-3):
+    low, high = box
+    return bool(np.any(point < low - margin) or np.any(point > high + margin))
+
+
+def test_default_cubemap_sits_in_free_space_at_eye_height(addon):
+    """Where a level artist would put it: over the scene, at about the camera's height, in free space, with
+    every object inside its influence. The old centre of the scene's bounds sat at a third of the camera's
+    height above the mirror floor, where the marker's reflection swelled into a giant disc."""
+    scene = _mirror_floor(*SMALL)
+    boxes = _vertex_boxes(scene)
+    camera_height = scene.camera.matrix_world.translation.z
+    floor = bpy.data.objects["Floor"]
+    with TemporaryChanges() as changes:
+        probe = _sphere_probe(scene, changes)
+        location = np.array(probe.location)
+        assert all(_outside(location, box) for box in boxes.values()), location
+        assert 0.5 * camera_height <= location[2] <= camera_height + 1e-6, location
+        # The influence sphere (past its falloff band) holds every object standing on the floor.
+        inner = probe.data.influence_distance * (1 - probe.data.falloff)
+        for name, (low, high) in boxes.items():
+            if name != "Floor":
+                corners = np.array([[x, y, z] for x in (low[0], high[0]) for y in (low[1], high[1])
+                                    for z in (low[2], high[2])])
+                assert np.linalg.norm(corners - location, axis=1).max() <= inner, name
+        assert probe.data.clip_end > np.linalg.norm(boxes["Floor"][1] - location)
+        assert floor.hide_probe_sphere, "the floor is left out of its own reflection"
+    assert not floor.hide_probe_sphere and not any(obj.type == "LIGHT_PROBE" for obj in scene.objects)
+
+    # A pillar where the probe would go pushes it aside, not up through the roof; a room around the
+    # camera is where the probe belongs, not an obstacle to climb out of.
+    add_mesh(scene, "cube", "Pillar", (0.0, 0.0, 2.0), (0.4, 0.4, 2.0), principled("Pillar"))
+    add_mesh(scene, "cube", "Room", (0.0, 0.0, 4.0), (12.0, 12.0, 4.0), principled("Room"))
+    boxes = _vertex_boxes(scene)
+    with TemporaryChanges() as changes:
+        location = np.array(_sphere_probe(scene, changes).location)
+    room = boxes.pop("Room")
+    assert not _outside(location, room, margin=-1e-3), f"{location} left the room"
+    assert all(_outside(location, box) for box in boxes.values()), location
+    assert 0.5 * camera_height <= location[2] <= camera_height + 1e-6, location
+    assert np.hypot(location[0], location[1]) < 1.0, f"{location}: beside the pillar, not across the room"
+
+
+def test_default_cubemap_shows_the_marker_misplaced_not_as_a_giant_disc(addon):
+    """On the mirror floor the cubemap reflects the cubes and the marker, imperfectly: shifted and rescaled.
+    The marker's true mirror image covers a known small area; its cubemap image may be a few times that, not
+    the disc of the old capture point near the floor (5.4 times as large here), and each cube's reflection
+    overlaps its true mirror image somewhat (the old point smeared them sideways, overlapping none)."""
+    width, height = 128, 72
+    scene = _mirror_floor(width, height)
+    image = operators.render_mode(scene, "CUBEMAP", replace(operators.render_request(scene), samples=4))[0]["final"]
+    origins, directions = _pixel_rays(scene, width, height)
+    marker_centre, marker_radius = (0.0, 3.0, 1.2), 0.35  # test_scenes/mirror_floor.py
+
+    def marker(o, d):
+        return _sphere_hit(o, d, marker_centre, marker_radius)
+    mirror_image = _mirror_mask(scene, width, height, 12.0, marker)
+    assert mirror_image.sum() >= 30
+    orange = (image[..., 0] > 1.0) & (image[..., 1] > 0.5 * image[..., 0]) & (image[..., 2] < 0.4 * image[..., 0])
+    reflected = orange & ~np.isfinite(marker(origins, directions))  # not the marker itself
+    assert 0 < reflected.sum() <= 3.5 * mirror_image.sum(), \
+        f"the marker's reflection covers {reflected.sum()} pixels, its mirror image {mirror_image.sum()}"
+    for name, x, excess in (("red", -2.2, _red_excess), ("blue", 2.2, _blue_excess)):
+        def cube(o, d, x=x):
+            return _box_hit(o, d, (x - 0.5, 4.5, 0.0), (x + 0.5, 5.5, 1.0))
+        cube_mirror = _mirror_mask(scene, width, height, 12.0, cube)
+        shown = (excess(image) > 0.05) & cube_mirror
+        assert shown.sum() >= 0.05 * cube_mirror.sum(), f"the {name} cube's reflection misses its mirror image"
+
+
 # --- the extension package -------------------------------------------------------------------------------------
 
 INSTALL_AND_ENABLE = textwrap.dedent("""

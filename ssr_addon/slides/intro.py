@@ -32,7 +32,8 @@ _MODE_SLIDES = (
      "reflection. Error against Cycles on the reflective pixels: FLIP {off_flip} off, {on_flip} on "
      "(relative MAE {off_rel_mae} and {on_rel_mae}); a frame took {off_ms} ms off and {on_ms} ms on."),
     ("cubemaps", "What about cubemaps?",
-     (("CUBEMAP", "One cubemap, captured at the scene's centre", "cubemap"), ("SSR", "SSR", "ssr")),
+     (("CUBEMAP", "One cubemap, captured over the scene's middle at eye height", "cubemap"),
+      ("SSR", "SSR", "ssr")),
      "A cubemap sees the scene from one point: reflections of nearby objects land in the wrong place "
      "and stretch, and nothing reflects itself. It is captured once, so moving objects are not in it. "
      "FLIP against Cycles: cubemap {cubemap_flip}, SSR {ssr_flip} (relative MAE {cubemap_rel_mae} and "
