@@ -15,6 +15,12 @@ def _noise(context, **settings):
     return render, context.noise(GLOSSY, render, converged)
 
 
+def _with_inset(context, label, stem, rgb):
+    """The image (label, STEM.png) of RGB and its enlarged part on the street (STEM_inset.png)."""
+    return [(label, context.save(f"{stem}.png", rgb)),
+            (f"{label}, enlarged", context.save_inset(f"{stem}_inset.png", rgb, GLOSSY_INSET), "inset")]
+
+
 def importance_sampling(context):
     images, numbers = [], {}
     for sampling, label in (("halton", "GGX lobe, Halton points"), ("random", "GGX lobe, random points"),
@@ -38,9 +44,7 @@ def neighbour_reuse(context):
     for samples, label in ((1, "No ray reuse"), (4, "4 neighbor reuse = 4 resolve samples")):
         render, numbers[f"reuse{samples}_noise"] = _noise(context, resolve_samples=samples)
         numbers[f"reuse{samples}_resolve_ms"] = round(render.stages_ms.get("resolve", 0.0), 1)
-        images.append((f"1 ray per 2x2 pixels, {label}", context.save(f"reuse_{samples}.png", render.final)))
-        images.append((f"{label}, enlarged", context.save_inset(f"reuse_{samples}_inset.png", render.final,
-                                                                  GLOSSY_INSET), "inset"))
+        images += _with_inset(context, f"1 ray per 2x2 pixels, {label}", f"reuse_{samples}", render.final)
     return section("Weighing Neighbors", images, numbers,
                    "Nearby pixels see nearly the same reflection, so each pixel also reads its neighbours' "
                    "rays, weighted by its own BRDF over the pdf they were drawn with (the ratio estimator). "
@@ -57,16 +61,14 @@ def sparse_ray_tracing(context):
         iterations = render.images["stats"]["iterations"]
         numbers[f"{name}_trace_ms"] = round(render.stages_ms.get("trace", 0.0) / iterations, 1)
         numbers[f"{name}_iterations"] = iterations
-        images.append((f"{label}, resolved at full resolution", context.save(f"sparse_{name}.png", render.final)))
-        images.append((f"{label}, enlarged", context.save_inset(f"sparse_{name}_inset.png", render.final,
-                                                                 GLOSSY_INSET), "inset"))
+        images += _with_inset(context, f"{label}, resolved at full resolution", f"sparse_{name}", render.final)
     return section("Sparse Ray Tracing", images, numbers,
                    "Tracing is decoupled from the colour resolve: rays are traced for one pixel of each 2x2 "
                    "quad, and every full-resolution pixel resolves its colour from the four nearest. Each "
                    "still ran until it settled ({full_iterations} and {half_iterations} iterations). "
                    "FLIP against Cycles: {full_flip} tracing every pixel, {half_flip} tracing a quarter "
-                   "(relative MAE {full_rel_mae} and {half_rel_mae}); an iteration's trace took {full_trace_ms} ms "
-                   "and {half_trace_ms} ms.")
+                   "(relative MAE {full_rel_mae} and {half_rel_mae}); an iteration's trace took "
+                   "{full_trace_ms} ms and {half_trace_ms} ms.")
 
 
 def filtered_importance_sampling(context):
@@ -75,9 +77,7 @@ def filtered_importance_sampling(context):
         render, numbers[f"{name}_noise"] = _noise(context, use_cone_filter=cone)
         settled, = context.chain(GLOSSY, use_cone_filter=cone)
         numbers[f"{name}_flip"] = context.error(GLOSSY, settled)["flip"]
-        images.append((f"{label}, one iteration", context.save(f"cones_{name}.png", render.final)))
-        images.append((f"{label}, enlarged", context.save_inset(f"cones_{name}_inset.png", render.final,
-                                                                 GLOSSY_INSET), "inset"))
+        images += _with_inset(context, f"{label}, one iteration", f"cones_{name}", render.final)
     return section("Filtered Importance Sampling", images, numbers,
                    "Each ray is read as a cone: from a blurred level of the colour pyramid, wider as the "
                    "surface is rougher and the hit farther, so a few rays cover the lobe instead of "
