@@ -56,12 +56,16 @@ class SlideContext:
         rendered once per run (a still is the same image every time)."""
         key = (name, mode, tuple(sorted(settings.items())))
         if key not in self._renders:
-            request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
-                                    settings=replace(ChainSettings(), **settings))
-            started = time.perf_counter()
-            images, timer = render_mode(self.scene(name), mode, request)
-            self._renders[key] = Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
+            self._renders[key] = self._timed_render(self.scene(name), mode, settings)
         return self._renders[key]
+
+    def _timed_render(self, scene, mode, settings, state=None):
+        """render_mode of SCENE's current frame at the run's size and samples, as a Render."""
+        request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
+                                settings=replace(ChainSettings(), **settings))
+        started = time.perf_counter()
+        images, timer = render_mode(scene, mode, request, state)
+        return Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
 
     def chain(self, name, frames=1, **settings):
         """The chain alone, with SETTINGS, on the passes of NAME's SSR still (render()), run as FRAMES
@@ -91,16 +95,12 @@ class SlideContext:
         """Frames FRAMES of scene NAME's own animation in SSR mode, history carried from frame to
         frame as a batch render carries it; a Render per frame."""
         scene = self.scene(name)
-        request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
-                                settings=replace(ChainSettings(), **settings))
         state, renders = ChainState(), []
         with lamp_world_for_run():
             for frame in frames:
                 scene.frame_set(frame)
                 state.begin_frame(frame, scene.camera.name)
-                started = time.perf_counter()
-                images, timer = render_mode(scene, "SSR", request, state)
-                renders.append(Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0))
+                renders.append(self._timed_render(scene, "SSR", settings, state))
         return renders
 
     def error(self, name, render):
