@@ -184,6 +184,13 @@ class FrameContext:
     color_rects: list
     world_to_clip: np.ndarray
 
+    @property
+    def resolve_size(self):
+        """Of the resolve's own textures: the traced size when half-resolution rays are resolved
+        there (resolve_resolution=half), the frame's otherwise."""
+        settings = self.settings
+        return self.trace_size if settings.half_resolution and settings.resolve_resolution == "half" else self.size
+
 
 def chain_params(frame, iteration, history_mode, previous_world_to_clip):
     """The uniform block of one iteration of FRAME, every field by name (gpu_params.PARAMS_FIELDS)."""
@@ -198,6 +205,7 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "previous_world_to_clip": previous_world_to_clip,
         "viewport_size": size, "pixel_size": (1.0 / size[0], 1.0 / size[1]), "trace_size": trace_size,
         "trace_scale": 2 if settings.half_resolution else 1,
+        "resolve_scale": 2 if frame.resolve_size != size else 1,
         "sample_index": iteration.sample_index, "quad_phase": iteration.quad_phase,
         "noise_seed": iteration.noise_seed,
         "clip_start": inputs.clip_start, "clip_end": inputs.clip_end,
@@ -338,14 +346,21 @@ def _run_iteration(frame, first):
         uniform_blocks=blocks)
     lap(timer, "trace", ray_hit_tx)
 
-    resolved_tx = pool.get("reflection", size)
-    reflection_hit_tx = pool.get("reflection_hit", size)
+    resolve_size = frame.resolve_size
+    resolved_tx = pool.get("reflection" if resolve_size == size else "reflection_half", resolve_size)
+    reflection_hit_tx = pool.get("reflection_hit" if resolve_size == size else "reflection_hit_half", resolve_size)
     get_pass("resolve").draw(
         [resolved_tx, reflection_hit_tx],
         samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
                   ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
                   ("color_tx", frame.color_tx)),
         uniform_blocks=blocks)
+    if resolve_size != size:
+        half_tx, half_hit_tx = resolved_tx, reflection_hit_tx
+        resolved_tx, reflection_hit_tx = pool.get("reflection", size), pool.get("reflection_hit", size)
+        get_pass("resolve_upscale").draw([resolved_tx, reflection_hit_tx],
+                                         samplers=(("reflection_tx", half_tx), ("reflection_hit_tx", half_hit_tx)),
+                                         uniform_blocks=blocks)
     lap(timer, "resolve", resolved_tx)
 
     spatial_tx = resolved_tx

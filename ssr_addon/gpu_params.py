@@ -21,6 +21,7 @@ PARAMS_FIELDS = (
     ("vec2", "pixel_size", "1 / viewport_size"),
     ("vec2", "trace_size", "traced rays along each axis"),
     ("int", "trace_scale", "pixels per traced ray along each axis (1 or 2)"),
+    ("int", "resolve_scale", "pixels per resolved texel along each axis (1, or 2 resolving at the traced size)"),
     ("uint", "sample_index", "this iteration's index in the low-discrepancy sequence"),
     ("int", "quad_phase", "which pixel of each 2x2 quad originates this iteration's ray (0..3)"),
     ("uint", "noise_seed", "changes every iteration: decorrelates the ray-class coin over time"),

@@ -53,6 +53,13 @@ class ChainSettings:
     resolve_samples: int = _setting(
         4, "Rays each pixel reuses from its neighbourhood (ratio estimator); 1: its own ray only", 1, 9,
         group="resolve")
+    resolve_resolution: str = _setting(
+        "full", "Where the colour is resolved when rays are traced at half resolution (the deck's "
+                "\"Sparse Ray Tracing\": full is its choice, half is there to compare it with)",
+        items=(("full", "Full", "Every pixel resolves its own colour from the four nearest rays"),
+               ("half", "Half", "Each traced ray's pixel resolves, and the result is scaled up: cheaper, "
+                                "blurred across edges")),
+        group="resolve")
     use_cone_filter: bool = _setting(
         True, "Read each reused ray as a cone from a colour pyramid, wider with roughness and distance",
         group="resolve")

@@ -63,6 +63,8 @@ PASSES = {
                                ("reflection_img", "reflection_hit_img"),
                                libraries=("common_lib.glsl", "ggx_lib.glsl"),
                                defines=(("LOBE_TAIL", repr(LOBE_TAIL)),)),
+    "resolve_upscale": PassDeclaration("resolve_upscale.glsl", ("reflection_tx", "reflection_hit_tx"),
+                                       ("reflection_img", "reflection_hit_img"), libraries=()),
     "denoise_spatial": PassDeclaration("denoise_spatial.glsl", ("reflection_tx", "reflection_hit_tx", "depth_tx",
                                                                 "normal_tx", "roughness_tx"), ("filtered_img",),
                                        libraries=("common_lib.glsl", "ggx_lib.glsl")),

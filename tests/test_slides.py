@@ -3,6 +3,7 @@ images and numbers, the images exist, and the captions show exactly what slides.
 import html
 import json
 import re
+import shutil
 
 import numpy as np
 import pytest
@@ -85,8 +86,28 @@ def test_each_slide_shows_what_its_caption_says(slides):
     assert cones["cone_noise"] < cones["monte_carlo_noise"]
     walk = numbers["hierarchical_ray_trace"]
     assert walk["visits"] < walk["pixel_tests"] and walk["highest_level"] >= 2
-    assert numbers["sparse_ray_tracing"]["half_trace_ms"] < numbers["sparse_ray_tracing"]["full_trace_ms"]
+    sparse = numbers["sparse_ray_tracing"]
+    assert sparse["half_trace_ms"] < sparse["full_trace_ms"] and sparse["half_gap"] < sparse["half_resolve_gap"]
     assert numbers["limits"]["hidden_flip"] < numbers["limits"]["hidden_fallback_flip"]
+
+
+def test_some_sections_rerun_replace_their_own_and_keep_the_others(slides, tmp_path):
+    """--sections into a folder with a run at the same size: the page keeps every section, the
+    ones run now rewritten, the rest as they were."""
+    out, report, _ = slides
+    shutil.copytree(out, tmp_path, dirs_exist_ok=True)
+    earlier = json.loads(json.dumps(report))
+    titles = {section["id"]: section["title"] for section in report["sections"]}
+    for section in earlier["sections"]:
+        section["title"] = "kept from the earlier run"
+    (tmp_path / "slides.json").write_text(json.dumps(earlier))
+    run_cli("slides", "--out", tmp_path, "--quick", "--sections", "basic_algorithm")
+    merged = json.loads((tmp_path / "slides.json").read_text())
+    assert [section["id"] for section in merged["sections"]] == [section["id"] for section in report["sections"]]
+    for section in merged["sections"]:
+        rerun = section["id"] == "basic_algorithm"
+        assert section["title"] == (titles[section["id"]] if rerun else "kept from the earlier run")
+    assert (tmp_path / "index.html").read_text().count("<section id=") == len(SECTIONS)
 
 
 @pytest.mark.parametrize("arguments, named", [(("--resolution", "64by36"), "64by36"),

@@ -1,4 +1,5 @@
-"""The charts: speed against accuracy, the contact sheet and the stability cases (matplotlib, Agg)."""
+"""The charts: speed against accuracy, the contact sheet, the stability cases, stage costs and costs
+against a count (matplotlib, Agg)."""
 import numpy as np
 
 from ..outputs import written_together
@@ -138,5 +139,23 @@ def chart_stage_costs(stages, deck, path, title):
     axes.set_ylabel("full-screen copy passes")
     axes.set_title(title, fontsize=9)
     axes.grid(True, axis="y", alpha=0.3)
+    figure.tight_layout()
+    save_figure(figure, path)
+
+
+def chart_cost_by_count(counts, curves, path, x_label, y_label, title):
+    """Lines of each curve's cost (CURVES: {label: [cost per count]}) against COUNTS."""
+    pyplot = load_pyplot()
+    figure, axes = pyplot.subplots(figsize=(9, 3.6), dpi=100)
+    for label, costs in curves.items():
+        axes.plot(counts, costs, marker="o", label=label)
+        axes.annotate(f"{costs[-1]:.0f}", (counts[-1], costs[-1]), textcoords="offset points", xytext=(4, 0),
+                      fontsize=8, va="center")
+    axes.set_xlabel(x_label)
+    axes.set_ylabel(y_label)
+    axes.set_ylim(bottom=0)
+    axes.set_title(title, fontsize=9)
+    axes.grid(True, alpha=0.3)
+    axes.legend(fontsize=8)
     figure.tight_layout()
     save_figure(figure, path)

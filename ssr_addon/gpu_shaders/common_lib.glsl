@@ -12,6 +12,17 @@ ivec2 texel_at(vec2 position_px)
   return clamp(ivec2(floor(position_px)), ivec2(0), ivec2(params.viewport_size) - 1);
 }
 
+/* The pixel whose ray traced texel TEXEL holds this iteration: with half-resolution
+ * tracing, pixel params.quad_phase of its 2x2 quad (the trace, and a resolve at
+ * the traced size, shade there). */
+ivec2 ray_origin_pixel(ivec2 texel)
+{
+  int scale = params.trace_scale;
+  int phase = params.quad_phase;
+  ivec2 offset = scale > 1 ? ivec2(phase & 1, (phase >> 1) ^ (phase & 1)) : ivec2(0);
+  return min(texel * scale + offset, ivec2(params.viewport_size) - 1);
+}
+
 bool is_background(float depth)
 {
   return depth >= params.clip_end;

@@ -1,5 +1,8 @@
-/* Colour resolve at full resolution with neighbour ray reuse ("Weighing
- * Neighbors", "Sparse Ray Tracing" and "Filtered Importance Sampling" slides).
+/* Colour resolve with neighbour ray reuse ("Weighing Neighbors", "Sparse Ray
+ * Tracing" and "Filtered Importance Sampling" slides): at full resolution, or
+ * (params.resolve_scale 2, the sparse slide's comparison) at the traced size,
+ * each texel resolving the pixel its ray started from; resolve_upscale.glsl then
+ * scales that up.
  *
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
  *          color_tx (colour pyramid atlas; level 0 is the lit scene).
@@ -50,7 +53,7 @@ vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
 
 void main()
 {
-  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  ivec2 pixel = params.resolve_scale > 1 ? ray_origin_pixel(ivec2(gl_FragCoord.xy)) : ivec2(gl_FragCoord.xy);
   reflection_img = vec4(0.0);
   reflection_hit_img = vec4(0.0);
   float depth = texelFetch(depth_tx, pixel, 0).r;

@@ -33,14 +33,6 @@ vec2 sample_point(ivec2 pixel, uint index)
   return fract(vec2(halton(index + 1u, 2u), halton(index + 1u, 3u)) + pixel_noise(pixel, 0u));
 }
 
-ivec2 ray_origin_pixel(ivec2 texel)
-{
-  int scale = params.trace_scale;
-  int phase = params.quad_phase;
-  ivec2 offset = scale > 1 ? ivec2(phase & 1, (phase >> 1) ^ (phase & 1)) : ivec2(0);
-  return min(texel * scale + offset, ivec2(params.viewport_size) - 1);
-}
-
 bool is_expensive(float roughness, ivec2 pixel)
 {
   float threshold = params.expensive_roughness;

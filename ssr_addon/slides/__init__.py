@@ -7,8 +7,10 @@ baselines, the basic algorithm's inputs, the linear raymarch, cheap against expe
 importance sampling, reusing neighbours' rays, the temporal filter and its reprojection, sparse
 tracing, filtered importance sampling, performance and the limits of screen space. They share
 the bench's measuring parts: its Cycles references, metrics, charts and display transform.
-`--sections ID ...` renders some of them only.
+`--sections ID ...` renders some of them only: into a folder that holds a run at the same size,
+they replace their own sections there and the others stay.
 """
+import json
 import os
 import time
 
@@ -46,7 +48,34 @@ def run_slides(out_dir, resolution=None, quick=False, only=None, log=print):
             + ", ".join(f"{key} {value}" for key, value in section["numbers"].items()))
         sections.append(section)
     report = {"resolution": list(resolution), "quick": quick, "eevee_samples": context.samples,
-              "reference_samples": context.reference_samples, "sections": sections}
+              "reference_samples": context.reference_samples,
+              "sections": _merged(sections, _earlier_sections(out_dir, resolution, quick, log)) if only else sections}
     write_json(os.path.join(out_dir, "slides.json"), report)
     write_page(os.path.join(out_dir, "index.html"), report)  # last: the page names only what exists
     return report
+
+
+def _earlier_sections(out_dir, resolution, quick, log):
+    """The sections of OUT_DIR's slides.json when it was made at RESOLUTION and QUICK alike (a
+    page mixes no sizes); else none."""
+    path = os.path.join(out_dir, "slides.json")
+    if not os.path.exists(path):
+        return []
+    try:
+        with open(path, encoding="utf-8") as stream:
+            earlier = json.load(stream)
+    except (OSError, ValueError) as error:
+        log(f"{path} cannot be read ({error}): the page shows only the sections run now")
+        return []
+    if earlier.get("resolution") != list(resolution) or earlier.get("quick") != quick:
+        log(f"{path} holds a run at {earlier.get('resolution')} (quick {earlier.get('quick')}): "
+            "the page shows only the sections run now")
+        return []
+    return earlier.get("sections", [])
+
+
+def _merged(sections, earlier):
+    """SECTIONS run now, with EARLIER's others, in the deck's order."""
+    by_id = {section["id"]: section for section in earlier}
+    by_id.update((section["id"], section) for section in sections)
+    return [by_id[key] for key in section_ids() if key in by_id]

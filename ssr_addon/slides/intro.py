@@ -1,16 +1,22 @@
 """The deck's opening slides: SSR on and off, the cubemap and planar baselines (rows of
-_MODE_SLIDES) and the basic algorithm's inputs."""
+_MODE_SLIDES), the planar probe's cost as the scene grows, and the basic algorithm's inputs."""
+import os
+
+import bmesh
+import bpy
 import numpy as np
 
+from ..bench.charts import chart_cost_by_count
+from ..overrides import TemporaryChanges
 from .section import section
 
 MIRROR = "mirror_floor"  # a sphere and boxes over a mirror floor: the deck's opening example
 
 
-def _modes_side_by_side(key, title, scene, tiles, caption):
+def _modes_side_by_side(key, title, scene, tiles, caption, more=None):
     """The builder of a section of SCENE rendered in each comparison mode of TILES ((mode, label,
     name) each), with each one's error against Cycles and milliseconds as NAME_flip,
-    NAME_rel_mae and NAME_ms."""
+    NAME_rel_mae and NAME_ms; MORE(context, key, scene), when given, adds (images, numbers)."""
     def build(context):
         images, numbers = [], {}
         for mode, label, name in tiles:
@@ -18,30 +24,80 @@ def _modes_side_by_side(key, title, scene, tiles, caption):
             numbers.update({f"{name}_{metric}": value for metric, value in context.error(scene, render).items()})
             numbers[f"{name}_ms"] = round(render.wall_ms)
             images.append((label, context.save(f"{key}_{name}.png", render.final)))
+        if more:
+            more_images, more_numbers = more(context, key, scene)
+            images += more_images
+            numbers.update(more_numbers)
         return section(title, images, numbers, caption)
     build.__name__ = key  # the section's id
     return build
 
 
+def _planar_cost(context, key, name):
+    """A chart of scene NAME's frame time with no reflection and with the planar probe as the
+    scene gains objects, and the probe's added milliseconds with none and with the most added."""
+    counts = (0, 16, 64) if context.quick else (0, 50, 200, 800)
+    curves = {"no reflection": [], "planar probe": []}
+    for count in counts:
+        with TemporaryChanges() as changes:
+            _scatter_spheres(context.scene(name), changes, count)
+            for curve, mode in (("no reflection", "NONE"), ("planar probe", "PLANAR")):
+                curves[curve].append(round(context.render_afresh(name, mode).wall_ms))
+    file_name = f"{key}_cost.png"
+    chart_cost_by_count(counts, curves, os.path.join(context.out_dir, file_name), "objects added to the scene",
+                        "milliseconds a frame", f"Frame time as the scene grows, "
+                        f"{context.resolution[0]}x{context.resolution[1]}, {context.samples} samples")
+    added = [planar - none for planar, none in zip(curves["planar probe"], curves["no reflection"])]
+    return ([("Frame time against object count", file_name, "chart")],
+            {"planar_added_ms": added[0], "planar_added_ms_grown": added[-1], "objects_added": counts[-1]})
+
+
+def _scatter_spheres(scene, changes, count, columns=8, rows=10):
+    """COUNT small spheres, each its own mesh and object, on a grid of COLUMNS x ROWS behind the
+    scene's objects (where the mirror shows them), layer above layer; CHANGES removes them."""
+    template = bpy.data.meshes.new("SlideSphere")
+    sphere = bmesh.new()
+    bmesh.ops.create_uvsphere(sphere, u_segments=16, v_segments=8, radius=0.12)
+    sphere.to_mesh(template)
+    sphere.free()
+    added = []
+    for index in range(count):
+        column, row, layer = index % columns, index // columns % rows, index // (columns * rows)
+        obj = bpy.data.objects.new(f"SlideSphere{index}", template.copy())
+        obj.location = (-4.0 + 8.0 * column / (columns - 1), 6.5 + 0.4 * row, 0.12 + 0.3 * layer)
+        scene.collection.objects.link(obj)
+        added.append(obj)
+
+    def remove():
+        for obj in added:
+            mesh = obj.data
+            bpy.data.objects.remove(obj)
+            bpy.data.meshes.remove(mesh)
+        bpy.data.meshes.remove(template)
+    changes.on_restore(remove)
+
+
 # The slides that set one comparison mode beside another on the mirror floor: (key, the deck's
-# title, tiles (mode, label, name), caption).
+# title, tiles (mode, label, name), more (see _modes_side_by_side) or None, caption).
 _MODE_SLIDES = (
     ("ssr_on_off", "SSR: ON / SSR: OFF",
-     (("NONE", "SSR off (world and probes only)", "off"), ("SSR", "SSR on (balanced)", "on")),
+     (("NONE", "SSR off (world and probes only)", "off"), ("SSR", "SSR on (balanced)", "on")), None,
      "Look at the floor: without SSR it reflects only the world, so the sphere and the boxes have no "
      "reflection. Error against Cycles on the reflective pixels: FLIP {off_flip} off, {on_flip} on "
      "(relative MAE {off_rel_mae} and {on_rel_mae}); a frame took {off_ms} ms off and {on_ms} ms on."),
     ("cubemaps", "What about cubemaps?",
      (("CUBEMAP", "One cubemap, captured over the scene's middle at eye height", "cubemap"),
-      ("SSR", "SSR", "ssr")),
+      ("SSR", "SSR", "ssr")), None,
      "A cubemap sees the scene from one point: reflections of nearby objects land in the wrong place "
      "and stretch, and nothing reflects itself. It is captured once, so moving objects are not in it. "
      "FLIP against Cycles: cubemap {cubemap_flip}, SSR {ssr_flip} (relative MAE {cubemap_rel_mae} and "
      "{ssr_rel_mae}); {cubemap_ms} ms and {ssr_ms} ms a frame."),
     ("planar", "Planar Reflections",
-     (("PLANAR", "Planar probe on the floor", "planar"), ("CUBEMAP", "Cubemap", "cubemap")),
+     (("PLANAR", "Planar probe on the floor", "planar"), ("CUBEMAP", "Cubemap", "cubemap")), _planar_cost,
      "Rendering the scene again from the mirrored viewpoint is exact for the one plane, and only for it; "
-     "its cost grows with the scene. FLIP against Cycles: planar {planar_flip}, cubemap {cubemap_flip} "
+     "its cost grows with the scene: the probe re-renders every object, {planar_added_ms} ms more a frame "
+     "than no reflection here and {planar_added_ms_grown} ms more with {objects_added} small objects added. "
+     "FLIP against Cycles: planar {planar_flip}, cubemap {cubemap_flip} "
      "(relative MAE {planar_rel_mae} and {cubemap_rel_mae}); {planar_ms} ms and {cubemap_ms} ms a frame."),
 )
 
@@ -67,5 +123,5 @@ def basic_algorithm(context):
         "iterations.")
 
 
-INTRO_SECTIONS = (*(_modes_side_by_side(key, title, MIRROR, tiles, caption)
-                    for key, title, tiles, caption in _MODE_SLIDES), basic_algorithm)
+INTRO_SECTIONS = (*(_modes_side_by_side(key, title, MIRROR, tiles, caption, more)
+                    for key, title, tiles, more, caption in _MODE_SLIDES), basic_algorithm)
