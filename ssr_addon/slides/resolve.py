@@ -88,8 +88,8 @@ def sparse_ray_tracing(context):
                    "{full_flip} tracing every pixel; tracing a quarter, {half_resolve_flip} resolving at half "
                    "resolution, {half_flip} at full (relative MAE {full_rel_mae}, {half_resolve_rel_mae} and "
                    "{half_rel_mae}); their mean difference from tracing every pixel, relative to its level, is "
-                   "{half_resolve_gap} and {half_gap}. An iteration's trace took {full_trace_ms} ms for every pixel and "
-                   "{half_trace_ms} ms for a quarter; its resolve {half_resolve_resolve_ms} ms at half "
+                   "{half_resolve_gap} and {half_gap}. An iteration's trace took {full_trace_ms} ms for every "
+                   "pixel and {half_trace_ms} ms for a quarter; its resolve {half_resolve_resolve_ms} ms at half "
                    "resolution and {half_resolve_ms} ms at full.")
 
 
