@@ -86,6 +86,9 @@ def test_each_slide_shows_what_its_caption_says(slides):
     assert cones["cone_noise"] < cones["monte_carlo_noise"]
     walk = numbers["hierarchical_ray_trace"]
     assert walk["visits"] < walk["pixel_tests"] and walk["highest_level"] >= 2
+    rays = numbers["cheap_and_expensive_rays"]
+    assert rays["deck_expensive_share"] <= 0.21
+    assert rays["balanced_expensive_share"] >= rays["budget"]
     sparse = numbers["sparse_ray_tracing"]
     assert sparse["half_trace_ms"] < sparse["full_trace_ms"] and sparse["half_gap"] < sparse["half_resolve_gap"]
     assert numbers["limits"]["hidden_flip"] < numbers["limits"]["hidden_fallback_flip"]
