@@ -175,6 +175,13 @@ def albedo_table(size=ALBEDO_TABLE_SIZE, samples=1024):
     return np.where(n_dot_l > 0, (1 + lambda_v) / (1 + lambda_v + lambda_l), 0.0).mean(-1)
 
 
+@functools.lru_cache(maxsize=1)
+def _albedo_texture():
+    """albedo_table as a texture, uploaded once (the GPU backend lives as long as the process).
+    The table's rows are roughness and columns n.v; GL's first row is the image's last."""
+    return upload(albedo_table().T[::-1])
+
+
 _SHAPES = {"sphere": 0, "facing_disk": 1, "sun": 2, "rect": 3, "ellipse": 4}  # lamp_specular.glsl's SHAPE_*
 
 
@@ -200,11 +207,9 @@ def lamp_specular(lamps, depth, normal, roughness, view_matrix, projection_matri
     ensure_backend()
     height, width = depth.shape
     target = empty_texture((width, height))
-    # The table's rows are roughness and columns n.v; GL's first row is the image's last.
-    albedo_tx = upload(albedo_table().T[::-1])
     get_pass("lamp_specular").draw(
         [target], samplers=(("depth_tx", upload(depth)), ("normal_tx", upload(normal)),
-                            ("roughness_tx", upload(roughness)), ("albedo_tx", albedo_tx)),
+                            ("roughness_tx", upload(roughness)), ("albedo_tx", _albedo_texture())),
         uniform_blocks=(("lamp_block", lamp_block(lamps, (width, height), view_matrix, projection_matrix,
                                                   background_depth)),))
     return download(target, 3)

@@ -33,6 +33,10 @@ class Render:
     def final(self):
         return self.images["final"][..., :3]
 
+    def iteration_ms(self, stage):
+        """STAGE's milliseconds per trace iteration of the frame, rounded for a caption."""
+        return round(self.stages_ms.get(stage, 0.0) / self.images["stats"]["iterations"], 1)
+
 
 class SlideContext:
     def __init__(self, out_dir, resolution, quick, log):

@@ -46,7 +46,7 @@ def neighbour_reuse(context):
     images, numbers = [], {}
     for samples, label in ((1, "No ray reuse"), (4, "4 neighbor reuse = 4 resolve samples")):
         render, numbers[f"reuse{samples}_noise"] = _noise(context, resolve_samples=samples)
-        numbers[f"reuse{samples}_resolve_ms"] = round(render.stages_ms.get("resolve", 0.0), 1)
+        numbers[f"reuse{samples}_resolve_ms"] = render.iteration_ms("resolve")
         images += _with_inset(context, f"1 ray per 2x2 pixels, {label}", f"reuse_{samples}", render.final)
     return section("Weighing Neighbors", images, numbers,
                    "Nearby pixels see nearly the same reflection, so each pixel also reads its neighbours' "
@@ -74,10 +74,9 @@ def sparse_ray_tracing(context):
         if render is not every_pixel:
             numbers[f"{name}_gap"] = context.noise(MIRROR, render, every_pixel)
         numbers.update({f"{name}_{metric}": value for metric, value in context.error(MIRROR, render).items()})
-        iterations = render.images["stats"]["iterations"]
         for stage in stages:
-            numbers[f"{name}_{stage}_ms"] = round(render.stages_ms.get(stage, 0.0) / iterations, 1)
-        numbers[f"{name}_iterations"] = iterations
+            numbers[f"{name}_{stage}_ms"] = render.iteration_ms(stage)
+        numbers[f"{name}_iterations"] = render.images["stats"]["iterations"]
         images += _with_inset(context, label, f"sparse_{name}", render.final, MIRROR_INSET)
     return section("Sparse Ray Tracing", images, numbers,
                    "Tracing is decoupled from the colour resolve: rays are traced for one pixel of each 2x2 "
