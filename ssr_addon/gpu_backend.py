@@ -165,19 +165,30 @@ class TexturePool:
         self._textures.clear()
 
 
-class StageTimer:
-    """Wall-clock milliseconds per stage; waits for the GPU so a stage's time is its own."""
+def wait_for(texture):
+    """Return once the GPU has written TEXTURE: reading one pixel waits for the queued work."""
+    framebuffer = gpu.types.GPUFrameBuffer(color_slots=(texture,))
+    with framebuffer.bind():
+        framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
 
-    def __init__(self):
+
+class StageTimer:
+    """Wall-clock milliseconds per stage.
+
+    WAIT_FOR_GPU: wait for each GPU stage's output, so a stage's time is its own (benchmarks,
+    the live view's per-iteration cost). Without it the GPU works through the queued stages
+    while the CPU goes on, as a frame renders fastest: a GPU stage's time is then only its
+    queueing, and the GPU's work shows in the first stage that reads a result back."""
+
+    def __init__(self, wait_for_gpu=True):
         self.milliseconds = {}
+        self.wait_for_gpu = wait_for_gpu
         self._start = time.perf_counter()
 
     def lap(self, stage, texture=None):
-        """Close STAGE; with TEXTURE (its output), first wait until the GPU has written it."""
-        if texture is not None:
-            framebuffer = gpu.types.GPUFrameBuffer(color_slots=(texture,))
-            with framebuffer.bind():  # reading one pixel waits for the queued GPU work
-                framebuffer.read_color(0, 0, 1, 1, 4, 0, "FLOAT")
+        """Close STAGE; with TEXTURE (its output) and wait_for_gpu, first wait until the GPU has written it."""
+        if texture is not None and self.wait_for_gpu:
+            wait_for(texture)
         now = time.perf_counter()
         self.milliseconds[stage] = self.milliseconds.get(stage, 0.0) + (now - self._start) * 1000.0
         self._start = now

@@ -52,6 +52,8 @@ class RenderRequest:
     overwrite: bool = False      # replace the run in out_dir instead of resuming it (run_report)
     file_prefix: str = "frame_"  # frame N is written as {file_prefix}{N:04d}.exr, .png and .passes.exr
     mode: str = None             # the operators' comparison mode, when one applies a baseline
+    time_stages: bool = False    # wait for the GPU after each chain stage to time it apart (benchmarks);
+    #                              otherwise the GPU's work shows in "readback", and the frame is quicker
 
     def __post_init__(self):
         if self.method not in METHODS:
@@ -105,7 +107,7 @@ def render_frame(scene, request, state=None):
     caller has begun the frame in it (state.begin_frame). Without one the frame
     is a still, accumulated over `accumulate_frames` iterations.
     """
-    timer = StageTimer()
+    timer = StageTimer(wait_for_gpu=request.time_stages)
     use_ssr = request.method == "ssr" and request.settings.use_ssr
     passes = render_passes(scene, request.engine, request.samples, request.resolution,
                            RENDER_RAYTRACING.get(request.method),

@@ -53,27 +53,37 @@ def run_contenders(scene, contenders, options):
     Taking turns spreads any change in the machine's load over all contenders
     alike. Each contender keeps its own ChainState and draws each frame's
     random numbers as run_render does, so its frames are those of a still
-    animation, with temporal history. Returns {name: (final image of the last
-    frame, {stage: milliseconds})}, each stage's time the fastest over the
-    frames after the first (other processes only ever add time; a first frame
-    accumulates a still's iterations, and the process's first render is
-    quicker than any later one).
+    animation, with temporal history. After the first frame (which accumulates
+    a still's iterations, and the process's first render is quicker than any
+    later one), frames alternate: one timed stage by stage, a GPU wait after
+    each chain stage, the next timed whole, as a render runs. Returns {name:
+    (final image of the last frame, {stage: ms} of the frames timed stage by
+    stage, {stage: ms} of the frames timed whole)}, each stage's time the
+    fastest over its frames (other processes only ever add time).
     """
     states = {contender.name: ChainState() for contender in contenders}
     finals, laps = {}, {contender.name: [] for contender in contenders}
     with lamp_world_for_run():  # as a batch render keeps it
-        for frame in range(scene.frame_current, scene.frame_current + options.frames):
+        for index, frame in enumerate(range(scene.frame_current, scene.frame_current + options.frames)):
+            time_stages = index % 2 == 1
             for contender in contenders:
                 state = states[contender.name]
                 state.begin_frame(frame)
                 request = RenderRequest(out_dir=options.out_dir, method=contender.method,
                                         resolution=options.resolution, samples=options.eevee_samples,
-                                        settings=contender.settings)
+                                        settings=contender.settings, time_stages=time_stages)
                 images, timer = render_frame(scene, request, state)
                 finals[contender.name] = images["final"][..., :3]
-                laps[contender.name].append(timer.milliseconds)
+                laps[contender.name].append((time_stages, timer.milliseconds))
     results = {}
     for name, frames in laps.items():
         timed = frames[1:] or frames
-        results[name] = (finals[name], {stage: min(frame.get(stage, 0.0) for frame in timed) for stage in frames[0]})
+        staged = [stages for apart, stages in timed if apart] or [stages for _, stages in timed]
+        whole = [stages for apart, stages in timed if not apart] or staged
+        results[name] = (finals[name], _fastest(staged), _fastest(whole))
     return results
+
+
+def _fastest(frames):
+    """{stage: its fewest milliseconds over FRAMES ({stage: ms} each)}."""
+    return {stage: min(frame.get(stage, 0.0) for frame in frames) for stage in frames[0]}

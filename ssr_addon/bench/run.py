@@ -82,9 +82,9 @@ def run_bench(options, log=print):
         sheet[label] = {"reference": (reference.image, reference.mask)}
         rendered = run_contenders(scene, contenders, options)
         for contender in contenders:
-            final, stages = rendered[contender.name]
-            frame_ms = sum(stages.values())
-            addon_ms = frame_ms - stages.get("render", 0.0)  # everything but the engine's own render
+            final, stages, whole = rendered[contender.name]
+            frame_ms = sum(whole.values())
+            addon_ms = frame_ms - whole.get("render", 0.0)  # everything but the engine's own render
             scores, error = accuracy(reference.image, final, reference.mask)
             sheet[label][contender.name] = (final, error)
             rows.append({"scene": label, "contender": contender.name, "method": contender.method,
@@ -99,10 +99,12 @@ def run_bench(options, log=print):
         "scenes": [scene_label(p) for p in scene_paths], "frames_per_contender": options.frames,
         "contender_patterns": options.contenders,
         "eevee_samples": options.eevee_samples,
-        "timing": "contenders take turns frame by frame; each stage's fastest time over the frames after the "
-                  "first (the least disturbed by other processes); a frame's time is the sum of its stages, "
-                  "render_frame's StageTimer laps; the engine's render is the 'render' stage, the lamp-only "
-                  "render SSR needs in scenes with lamps the 'lamp_split' stage (the add-on's share: addon_ms)",
+        "timing": "contenders take turns frame by frame; after the first frame, frames alternate between "
+                  "timing each stage apart (a GPU wait after each chain stage: stages_ms) and timing the frame "
+                  "as a render runs it (frame_ms, addon_ms); each stage's fastest time over its frames (the "
+                  "least disturbed by other processes); a frame's time is the sum of its stages, "
+                  "render_frame's StageTimer laps; the engine's render is the 'render' stage, the lamp split "
+                  "SSR needs in scenes with lamps the 'lamp_split' stage (the add-on's share: addon_ms)",
         "copy_pass_ms": copy_ms, "copy_pass_repeats": COPY_PASS_REPEATS,
         "reflective_mask": {"max_roughness": ChainSettings().max_roughness, "min_specular_color": MIN_SPECULAR_COLOR},
         "reference": {"engine": "cycles", "samples": options.reference_samples, "seeds": list(REFERENCE_SEEDS),

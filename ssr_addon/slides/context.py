@@ -77,7 +77,7 @@ class SlideContext:
     def _timed_render(self, scene, mode, settings, state=None):
         """render_mode of SCENE's current frame at the run's size and samples, as a Render."""
         request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
-                                settings=replace(ChainSettings(), **settings))
+                                settings=replace(ChainSettings(), **settings), time_stages=True)
         started = time.perf_counter()
         images, timer = render_mode(scene, mode, request, state)
         return Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
