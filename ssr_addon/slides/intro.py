@@ -89,7 +89,8 @@ _MODE_SLIDES = (
      (("CUBEMAP", "One cubemap, captured over the scene's middle at eye height", "cubemap"),
       ("SSR", "SSR", "ssr")), None,
      "A cubemap sees the scene from one point: reflections of nearby objects land in the wrong place "
-     "and stretch, and nothing reflects itself. It is captured once, so moving objects are not in it. "
+     "and stretch, and nothing reflects itself. A game captures it ahead of time, so moving objects are not "
+     "in it (this one is captured again for every frame, so it holds them). "
      "FLIP against Cycles: cubemap {cubemap_flip}, SSR {ssr_flip} (relative MAE {cubemap_rel_mae} and "
      "{ssr_rel_mae}); {cubemap_ms} ms and {ssr_ms} ms a frame."),
     ("planar", "Planar Reflections",
