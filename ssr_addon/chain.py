@@ -347,15 +347,17 @@ def _run_iteration(frame, first):
     lap(timer, "trace", ray_hit_tx)
 
     resolve_size = frame.resolve_size
-    resolved_tx = pool.get("reflection" if resolve_size == size else "reflection_half", resolve_size)
-    reflection_hit_tx = pool.get("reflection_hit" if resolve_size == size else "reflection_hit_half", resolve_size)
+    at_half = resolve_size != size  # resolve_resolution=half: resolved at the traced size, then scaled up
+    suffix = "_half" if at_half else ""
+    resolved_tx = pool.get(f"reflection{suffix}", resolve_size)
+    reflection_hit_tx = pool.get(f"reflection_hit{suffix}", resolve_size)
     get_pass("resolve").draw(
         [resolved_tx, reflection_hit_tx],
         samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
                   ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
                   ("color_tx", frame.color_tx)),
         uniform_blocks=blocks)
-    if resolve_size != size:
+    if at_half:
         half_tx, half_hit_tx = resolved_tx, reflection_hit_tx
         resolved_tx, reflection_hit_tx = pool.get("reflection", size), pool.get("reflection_hit", size)
         get_pass("resolve_upscale").draw([resolved_tx, reflection_hit_tx],
