@@ -129,18 +129,18 @@ def _lamp(obj, light, threshold):
                 influence_radius=influence, spot=spot, **common)
 
 
-def _stratified(count):
+def stratified_points(count):
     """COUNT points (a square number) at the centres of a stratified grid over [0, 1)^2."""
     side = int(round(math.sqrt(count)))
     return (np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), -1).reshape(-1, 2) + 0.5) / side
 
 
-def _smith_lambda(cos_theta, alpha2):
+def smith_lambda(cos_theta, alpha2):
     cos2 = np.clip(cos_theta * cos_theta, 1e-12, 1.0)
     return 0.5 * (np.sqrt(1 + alpha2 * (1 - cos2) / cos2) - 1)
 
 
-def _sample_visible_normals(view, alpha, points):
+def sample_visible_normals(view, alpha, points):
     """Half vectors (..., S, 3) in the local frame (normal = z) drawn from the visible normals
     of an isotropic GGX lobe of ALPHA (..., 1) seen from VIEW (..., 1, 3) (Heitz 2018)."""
     stretched = np.concatenate([alpha[..., None] * view[..., :2], view[..., 2:]], -1)
@@ -168,10 +168,10 @@ def albedo_table(size=ALBEDO_TABLE_SIZE, samples=1024):
     n_dot_v, roughness = np.meshgrid(centres, centres, indexing="ij")
     view = np.stack([np.sqrt(1 - n_dot_v ** 2), np.zeros_like(n_dot_v), n_dot_v], -1)[..., None, :]
     alpha = np.maximum(roughness ** 2, MIN_ALPHA)[..., None]
-    half = _sample_visible_normals(view, alpha, _stratified(samples))
+    half = sample_visible_normals(view, alpha, stratified_points(samples))
     n_dot_l = (2 * np.sum(view * half, -1, keepdims=True) * half - view)[..., 2]
-    lambda_v = _smith_lambda(view[..., 2], alpha ** 2)
-    lambda_l = _smith_lambda(n_dot_l, alpha ** 2)
+    lambda_v = smith_lambda(view[..., 2], alpha ** 2)
+    lambda_l = smith_lambda(n_dot_l, alpha ** 2)
     return np.where(n_dot_l > 0, (1 + lambda_v) / (1 + lambda_v + lambda_l), 0.0).mean(-1)
 
 

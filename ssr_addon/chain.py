@@ -346,6 +346,8 @@ def _run_iteration(frame, first):
         uniform_blocks=blocks)
     lap(timer, "trace", ray_hit_tx)
 
+    # Without history nothing reads it (history_lib.glsl); any texture not drawn into will do.
+    history_count_in_tx = pool.get(f"history_count{iteration.read_slot}", size) if has_history else inputs.depth_tx
     resolve_size = frame.resolve_size
     at_half = resolve_size != size  # resolve_resolution=half: resolved at the traced size, then scaled up
     suffix = "_half" if at_half else ""
@@ -355,7 +357,7 @@ def _run_iteration(frame, first):
         [resolved_tx, reflection_hit_tx],
         samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
                   ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
-                  ("color_tx", frame.color_tx)),
+                  ("color_tx", frame.color_tx), ("history_count_tx", history_count_in_tx)),
         uniform_blocks=blocks)
     if at_half:
         half_tx, half_hit_tx = resolved_tx, reflection_hit_tx
@@ -372,7 +374,7 @@ def _run_iteration(frame, first):
             [spatial_tx],
             samplers=(("reflection_tx", resolved_tx), ("reflection_hit_tx", reflection_hit_tx),
                       ("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
-                      ("roughness_tx", inputs.roughness_tx)),
+                      ("roughness_tx", inputs.roughness_tx), ("history_count_tx", history_count_in_tx)),
             uniform_blocks=blocks)
         lap(timer, "spatial", spatial_tx)
 
@@ -380,9 +382,7 @@ def _run_iteration(frame, first):
     if settings.use_temporal:
         filtered_tx = pool.get(f"history{iteration.write_slot}", size)
         count_tx = pool.get(f"history_count{iteration.write_slot}", size)
-        history_tx, history_count_in_tx = (
-            (pool.get(f"history{iteration.read_slot}", size), pool.get(f"history_count{iteration.read_slot}", size))
-            if has_history else (spatial_tx, reflection_hit_tx))  # not read without history
+        history_tx = pool.get(f"history{iteration.read_slot}", size) if has_history else spatial_tx  # not read then
         get_pass("temporal").draw(
             [filtered_tx, count_tx],
             samplers=(("reflection_tx", spatial_tx), ("reflection_hit_tx", reflection_hit_tx),

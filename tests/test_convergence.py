@@ -78,11 +78,13 @@ def test_error_falls_as_accumulated_frames_grow(spheres):
 
 def test_noise_halves_when_accumulated_frames_quadruple(spheres):
     """Two stills of different frames draw disjoint points of the sequence, so they differ by
-    the noise; it falls at least as 1/sqrt(frames)."""
+    the noise; it falls at least as 1/sqrt(frames). The cones are off: they narrow as the
+    history grows (history_lib.glsl), trading their noise reduction for less blur, so with
+    them each later iteration is noisier by design."""
     glossy = spheres[2]
     noise = {}
     for frames in (1, 4, 16):
-        settings = ChainSettings(accumulate_frames=frames, **ESTIMATOR_ONLY)
+        settings = ChainSettings(accumulate_frames=frames, use_cone_filter=False, **ESTIMATOR_ONLY)
         a = chain_final(spheres, settings, first_frame=0)
         b = chain_final(spheres, settings, first_frame=1)
         noise[frames] = float(np.sqrt(np.mean((a[glossy] - b[glossy]) ** 2) / 2))

@@ -4,13 +4,15 @@
  * "Stochastic All The Things", SEED 2018).
  *
  * Inputs:  reflection_tx (resolve: premultiplied radiance, confidence),
- *          reflection_hit_tx (mean hit distance, mean hit uv), depth_tx, normal_tx, roughness_tx.
+ *          reflection_hit_tx (mean hit distance, mean hit uv), depth_tx, normal_tx, roughness_tx,
+ *          history_count_tx (iterations the temporal history holds, history_lib.glsl).
  * Output:  filtered_img (premultiplied radiance, confidence).
  *
  * Each pixel averages a 5x5 grid of neighbours spread over the screen footprint
  * of its own GGX lobe at its hit distance (alpha * distance, at most
  * params.denoise_radius pixels), so the filter never blurs wider than the
- * surface's roughness already blurs the reflection. Taps count by a Gaussian
+ * surface's roughness already blurs the reflection, narrowed by the square root
+ * of the iterations the history averages (it stands for one iteration's noise). Taps count by a Gaussian
  * in screen distance times how well they share this pixel's plane, normal and
  * roughness, so the filter stops at edges. Mirror-like pixels (the lobe under
  * half a pixel) pass through untouched. Averaging premultiplied values fills
@@ -34,7 +36,7 @@ void main()
     return;
   }
   float hit_distance = texelFetch(reflection_hit_tx, pixel, 0).x;
-  float radius = lobe_radius_px(roughness, hit_distance, depth);
+  float radius = lobe_radius_px(roughness, hit_distance, depth) / sqrt(accumulated_iterations(pixel));
   if (!(radius >= 0.5)) {
     return;
   }

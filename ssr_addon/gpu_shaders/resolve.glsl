@@ -5,7 +5,8 @@
  * scales that up.
  *
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
- *          color_tx (colour pyramid atlas; level 0 is the lit scene).
+ *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_count_tx
+ *          (iterations the temporal history holds, history_lib.glsl).
  * Outputs: reflection_img     = (reflected radiance * confidence, confidence),
  *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
  *
@@ -75,9 +76,11 @@ void main()
   ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
   ivec2 trace_size = ivec2(params.trace_size);
   int ray_count = params.resolve_samples;
+  float rays_averaged = float(ray_count) * accumulated_iterations(pixel);
 
   /* A ray stands for 1 / (N pdf) steradians of the lobe (filtered importance
-   * sampling), but never for more than the whole sampled lobe: rays reach
+   * sampling), N the rays of every iteration the history averages here, but never
+   * for more than the whole sampled lobe: rays reach
    * sqrt((1 - LOBE_TAIL) / LOBE_TAIL) alphas from its peak (7 at 2 %, trace.glsl),
    * about that squared over the peak pdf in solid angle. Without the bound, a ray
    * from a smooth lobe's tail reads a blur of everything around its hit: a speck. */
@@ -107,7 +110,7 @@ void main()
     if (hit.w > 0.0 && weight > 0.0) {
       float hit_weight = weight * hit.w;
       vec3 radiance = hit_radiance(hit.xy, hit_distance,
-                                    min(1.0 / (float(ray_count) * hit.z), lobe_solid_angle));
+                                    min(1.0 / (rays_averaged * hit.z), lobe_solid_angle));
       radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(radiance) : radiance);
       hit_weight_sum += hit_weight;
       distance_sum += hit_weight * hit_distance;

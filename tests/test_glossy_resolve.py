@@ -1,0 +1,86 @@
+"""A settled glossy still equals the lobe integral of exact rays, not a blur of it.
+
+The expected reflection is a CPU Monte Carlo estimate computed another way than the
+chain: visible GGX normals drawn in numpy, each ray intersected with the boxes exactly
+(synthetic.intersect_boxes), a hit counting where the camera also sees it (a screen-space
+reflection can show nothing else), weighted by the Smith masking of its direction.
+
+The resolve's cones and the spatial filter trade blur for noise. Both stand for the few
+rays of one iteration; a still averages many, so left at one iteration's width they blur
+the settled image past the lobe.
+"""
+import numpy as np
+
+from gpu_harness import CLIP_END, run_synthetic_chain
+from synthetic import intersect_boxes, pixel_rays
+from test_clean_stills import BOXES, COLOURS, HEIGHT, WIDTH, mirror_scene
+from ssr_addon.analytic_lamps import sample_visible_normals, smith_lambda, stratified_points
+from ssr_addon.params import preset
+
+ROUGHNESS = 0.25
+SAMPLES_PER_PIXEL = 256
+STRIDE = 3  # the estimate is made at every third pixel in each direction
+# Pixels nearer the screen's border than this are not judged: the chain fades hits there.
+BORDER_PX = 12
+
+
+def exact_reflection(projection, depth, rays, floor, roughness):
+    """(reflected radiance premultiplied by confidence (H, W, 3), confidence (H, W)) of the floor
+    pixels on a STRIDE grid (NaN elsewhere): the normalised GGX lobe integral of exact rays."""
+    rows, columns = np.nonzero(floor)
+    keep = (rows % STRIDE == 0) & (columns % STRIDE == 0)
+    rows, columns = rows[keep], columns[keep]
+    points = rays[rows, columns] * depth[rows, columns, None]
+    to_eye = -points / np.linalg.norm(points, axis=-1, keepdims=True)
+    # The floor's frame: tangents x and -z, normal y (right-handed).
+    frame = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]).T
+    view_local = to_eye @ frame
+    alpha = np.full((len(rows), 1), roughness ** 2)
+    half = sample_visible_normals(view_local[:, None, :], alpha, stratified_points(SAMPLES_PER_PIXEL))
+    light_local = 2 * np.sum(view_local[:, None, :] * half, -1, keepdims=True) * half - view_local[:, None, :]
+    lambda_view = smith_lambda(view_local[:, 2:3], alpha ** 2)
+    weight = np.where(light_local[..., 2] > 0, (1 + lambda_view) /
+                      (1 + lambda_view + smith_lambda(light_local[..., 2], alpha ** 2)), 0.0)
+    directions = light_local @ frame.T
+    origins = np.broadcast_to(points[:, None, :], directions.shape)
+    t, box, _ = intersect_boxes(origins, directions, BOXES, np.full(weight.shape, 1e3))
+    hit = origins + directions * t[..., None]
+    clip = hit @ projection[:3, :3].T.astype(np.float64) + projection[:3, 3]
+    w = -hit[..., 2]
+    column = np.floor((clip[..., 0] / w * 0.5 + 0.5) * WIDTH).astype(int)
+    row = np.floor((0.5 - clip[..., 1] / w * 0.5) * HEIGHT).astype(int)
+    on_screen = (box >= 0) & (w > 0) & (column >= 0) & (column < WIDTH) & (row >= 0) & (row < HEIGHT)
+    seen = np.zeros_like(on_screen)
+    seen[on_screen] = np.abs(depth[row[on_screen], column[on_screen]] - w[on_screen]) < 0.05 * w[on_screen]
+    total = weight.sum(-1)
+    radiance = (weight[..., None] * np.where(seen[..., None], COLOURS[np.maximum(box, 0)], 0.0)).sum(1)
+    premultiplied = np.full((HEIGHT, WIDTH, 3), np.nan)
+    confidence = np.full((HEIGHT, WIDTH), np.nan)
+    premultiplied[rows, columns] = radiance / total[:, None]
+    confidence[rows, columns] = (weight * seen).sum(-1) / total
+    return premultiplied, confidence
+
+
+def settled_error(settings):
+    """Mean absolute difference of the settled still's premultiplied reflection from the exact
+    estimate on the judged floor pixels, and the estimate's mean there."""
+    projection, depth, normal, rays, floor, radiance, surface_roughness = mirror_scene(ROUGHNESS)
+    expected, _ = exact_reflection(projection, depth, rays, floor, ROUGHNESS)
+    judged = np.isfinite(expected[..., 0])
+    judged[:BORDER_PX], judged[-BORDER_PX:], judged[:, :BORDER_PX], judged[:, -BORDER_PX:] = False, False, False, False
+    arrays, _ = run_synthetic_chain(depth, normal, surface_roughness, projection, settings, radiance=radiance)
+    reflection = arrays["reflection"][..., :3]
+    return np.abs(reflection - expected)[judged].mean(), expected[judged].mean()
+
+
+def test_filters_narrow_as_the_history_grows(gpu_backend):
+    """A settled balanced still within 10 % (mean absolute error, relative to the mean) of the
+    exact lobe integral, as the same chain is without its blur-for-noise filters. The
+    last round's chain, its filters one iteration wide at every iteration, was 22 % off."""
+    balanced = preset("balanced").with_overrides(["border_fade=0"])
+    error, scale = settled_error(balanced)
+    unfiltered, _ = settled_error(balanced.with_overrides(["use_cone_filter=false", "use_spatial_filter=false"]))
+    assert unfiltered <= 0.1 * scale, f"the chain without filters is {unfiltered / scale:.1%} off the estimate"
+    assert error <= 0.1 * scale, (
+        f"settled balanced still {error / scale:.1%} off the exact lobe integral, {unfiltered / scale:.1%} "
+        "without its cone and spatial filters: the filters blur a settled image")
