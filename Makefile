@@ -6,7 +6,7 @@ STAMP := $(VENV)/.installed
 OUT ?= out/demo
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench bench-stages crops bench-chain bench-memory bench-lamps bench-live slides dist validate clean
+.PHONY: demo test bench bench-stages bench-error crops bench-chain bench-memory bench-lamps bench-live slides dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -37,6 +37,10 @@ bench: $(STAMP)
 bench-stages: $(STAMP)
 	$(PY) -m ssr_addon bench --scenes mirror_floor wet_street --resolution 160x90 --out docs/bench-stages \
 		--contenders 'ssr balanced' 'ssr *=off' --no-stability
+
+# Where the balanced preset's error comes from: the chain, EEVEE's frame or screen space itself.
+bench-error: $(STAMP)
+	$(PY) benchmarks/error_budget.py --scenes $(BENCH_SCENES) --frame 8 --readme README.md
 
 # Balanced stills at 1280x720 beside EEVEE's ray tracing, cropped (docs/crops/).
 crops: $(STAMP)

@@ -61,14 +61,15 @@ class ChainSettings:
                                 "blurred across edges")),
         group="resolve")
     use_cone_filter: bool = _setting(
-        True, "Read each reused ray as a cone from a colour pyramid, wider with roughness and distance",
+        True, "Read each reused ray as a cone from a colour pyramid, wider with roughness and distance, "
+        "narrower as iterations accumulate",
         group="resolve")
     use_firefly_guard: bool = _setting(
         True, "Average the reused rays' colours tone-mapped, so one bright ray cannot dominate a pixel",
         group="resolve")
     use_spatial_filter: bool = _setting(
         True, "Smooth the resolved reflection over each pixel's lobe footprint, stopping at depth, "
-        "normal and roughness edges", group="resolve")
+        "normal and roughness edges, narrower as iterations accumulate", group="resolve")
     denoise_radius: float = _setting(
         8.0, "Spatial filter: widest radius in pixels (a pixel's lobe footprint sets its own)", 1.0, 32.0,
         group="resolve")
