@@ -135,9 +135,16 @@ def stratified_points(count):
     return (np.stack(np.meshgrid(np.arange(side), np.arange(side), indexing="ij"), -1).reshape(-1, 2) + 0.5) / side
 
 
-def smith_lambda(cos_theta, alpha2):
+def _smith_lambda(cos_theta, alpha2):
     cos2 = np.clip(cos_theta * cos_theta, 1e-12, 1.0)
     return 0.5 * (np.sqrt(1 + alpha2 * (1 - cos2) / cos2) - 1)
+
+
+def visible_normal_weight(n_dot_v, n_dot_l, alpha2):
+    """Weight of a direction drawn from the visible normals (sample_visible_normals) in the
+    normalised GGX lobe integral: the height-correlated Smith G2 over G1(view); 0 below the horizon."""
+    lambda_v = _smith_lambda(n_dot_v, alpha2)
+    return np.where(n_dot_l > 0, (1 + lambda_v) / (1 + lambda_v + _smith_lambda(n_dot_l, alpha2)), 0.0)
 
 
 def sample_visible_normals(view, alpha, points):
@@ -170,9 +177,7 @@ def albedo_table(size=ALBEDO_TABLE_SIZE, samples=1024):
     alpha = np.maximum(roughness ** 2, MIN_ALPHA)[..., None]
     half = sample_visible_normals(view, alpha, stratified_points(samples))
     n_dot_l = (2 * np.sum(view * half, -1, keepdims=True) * half - view)[..., 2]
-    lambda_v = smith_lambda(view[..., 2], alpha ** 2)
-    lambda_l = smith_lambda(n_dot_l, alpha ** 2)
-    return np.where(n_dot_l > 0, (1 + lambda_v) / (1 + lambda_v + lambda_l), 0.0).mean(-1)
+    return visible_normal_weight(view[..., 2], n_dot_l, alpha ** 2).mean(-1)
 
 
 @functools.lru_cache(maxsize=1)

@@ -9,7 +9,7 @@ import numpy as np
 from scipy.ndimage import maximum_filter, minimum_filter
 
 from gpu_harness import CLIP_END, run_synthetic_chain
-from synthetic import intersect_boxes, perspective, pixel_rays, raycast
+from synthetic import intersect_boxes, perspective, pixel_rays, raycast, seen_by_camera
 from ssr_addon.chain import ray_budget
 from ssr_addon.params import preset
 
@@ -43,14 +43,7 @@ def analytic_reflection(projection, depth, rays, floor):
     points = rays * depth[..., None]
     mirrored = rays / np.linalg.norm(rays, axis=-1, keepdims=True) * (1.0, -1.0, 1.0)
     t, box, _ = intersect_boxes(points, mirrored, BOXES, np.full(depth.shape, 1e3))
-    hit = points + mirrored * t[..., None]
-    clip = hit @ projection[:3, :3].T + projection[:3, 3]
-    w = -hit[..., 2]
-    column = np.floor((clip[..., 0] / w * 0.5 + 0.5) * WIDTH).astype(int)
-    row = np.floor((0.5 - clip[..., 1] / w * 0.5) * HEIGHT).astype(int)
-    on_screen = (w > 0) & (column >= 0) & (column < WIDTH) & (row >= 0) & (row < HEIGHT)
-    seen = np.zeros_like(on_screen)
-    seen[on_screen] = np.abs(depth[row[on_screen], column[on_screen]] - w[on_screen]) < 0.05 * w[on_screen]
+    seen = seen_by_camera(points + mirrored * t[..., None], projection, depth)
     return np.where(floor & (box >= 0) & seen, box, -1)
 
 

@@ -11,10 +11,10 @@ the settled image past the lobe.
 """
 import numpy as np
 
-from gpu_harness import CLIP_END, run_synthetic_chain
-from synthetic import intersect_boxes, pixel_rays
+from gpu_harness import run_synthetic_chain
+from synthetic import intersect_boxes, seen_by_camera
 from test_clean_stills import BOXES, COLOURS, HEIGHT, WIDTH, mirror_scene
-from ssr_addon.analytic_lamps import sample_visible_normals, smith_lambda, stratified_points
+from ssr_addon.analytic_lamps import sample_visible_normals, stratified_points, visible_normal_weight
 from ssr_addon.params import preset
 
 ROUGHNESS = 0.25
@@ -25,8 +25,8 @@ BORDER_PX = 12
 
 
 def exact_reflection(projection, depth, rays, floor, roughness):
-    """(reflected radiance premultiplied by confidence (H, W, 3), confidence (H, W)) of the floor
-    pixels on a STRIDE grid (NaN elsewhere): the normalised GGX lobe integral of exact rays."""
+    """(H, W, 3) reflected radiance premultiplied by confidence of the floor pixels on a STRIDE
+    grid (NaN elsewhere): the normalised GGX lobe integral of exact rays."""
     rows, columns = np.nonzero(floor)
     keep = (rows % STRIDE == 0) & (columns % STRIDE == 0)
     rows, columns = rows[keep], columns[keep]
@@ -38,34 +38,22 @@ def exact_reflection(projection, depth, rays, floor, roughness):
     alpha = np.full((len(rows), 1), roughness ** 2)
     half = sample_visible_normals(view_local[:, None, :], alpha, stratified_points(SAMPLES_PER_PIXEL))
     light_local = 2 * np.sum(view_local[:, None, :] * half, -1, keepdims=True) * half - view_local[:, None, :]
-    lambda_view = smith_lambda(view_local[:, 2:3], alpha ** 2)
-    weight = np.where(light_local[..., 2] > 0, (1 + lambda_view) /
-                      (1 + lambda_view + smith_lambda(light_local[..., 2], alpha ** 2)), 0.0)
+    weight = visible_normal_weight(view_local[:, 2:3], light_local[..., 2], alpha ** 2)
     directions = light_local @ frame.T
     origins = np.broadcast_to(points[:, None, :], directions.shape)
     t, box, _ = intersect_boxes(origins, directions, BOXES, np.full(weight.shape, 1e3))
-    hit = origins + directions * t[..., None]
-    clip = hit @ projection[:3, :3].T.astype(np.float64) + projection[:3, 3]
-    w = -hit[..., 2]
-    column = np.floor((clip[..., 0] / w * 0.5 + 0.5) * WIDTH).astype(int)
-    row = np.floor((0.5 - clip[..., 1] / w * 0.5) * HEIGHT).astype(int)
-    on_screen = (box >= 0) & (w > 0) & (column >= 0) & (column < WIDTH) & (row >= 0) & (row < HEIGHT)
-    seen = np.zeros_like(on_screen)
-    seen[on_screen] = np.abs(depth[row[on_screen], column[on_screen]] - w[on_screen]) < 0.05 * w[on_screen]
-    total = weight.sum(-1)
+    seen = (box >= 0) & seen_by_camera(origins + directions * t[..., None], projection, depth)
     radiance = (weight[..., None] * np.where(seen[..., None], COLOURS[np.maximum(box, 0)], 0.0)).sum(1)
     premultiplied = np.full((HEIGHT, WIDTH, 3), np.nan)
-    confidence = np.full((HEIGHT, WIDTH), np.nan)
-    premultiplied[rows, columns] = radiance / total[:, None]
-    confidence[rows, columns] = (weight * seen).sum(-1) / total
-    return premultiplied, confidence
+    premultiplied[rows, columns] = radiance / weight.sum(-1)[:, None]
+    return premultiplied
 
 
 def settled_error(settings):
     """Mean absolute difference of the settled still's premultiplied reflection from the exact
     estimate on the judged floor pixels, and the estimate's mean there."""
     projection, depth, normal, rays, floor, radiance, surface_roughness = mirror_scene(ROUGHNESS)
-    expected, _ = exact_reflection(projection, depth, rays, floor, ROUGHNESS)
+    expected = exact_reflection(projection, depth, rays, floor, ROUGHNESS)
     judged = np.isfinite(expected[..., 0])
     judged[:BORDER_PX], judged[-BORDER_PX:], judged[:, :BORDER_PX], judged[:, -BORDER_PX:] = False, False, False, False
     arrays, _ = run_synthetic_chain(depth, normal, surface_roughness, projection, settings, radiance=radiance)

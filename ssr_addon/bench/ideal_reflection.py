@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ..analytic_lamps import sample_visible_normals, smith_lambda, stratified_points
+from ..analytic_lamps import sample_visible_normals, stratified_points, visible_normal_weight
 from ..params import ChainSettings
 
 SEEN_DEPTH_TOLERANCE = 0.03  # relative: the depth pass is an anti-aliased mean, not one surface
@@ -49,7 +49,8 @@ def ideal_screen_space(scene, passes, samples=64, max_roughness=ChainSettings().
     height, width = passes.depth.shape
     rng = np.random.default_rng(seed)
     points, camera = _pixel_points(passes)
-    world_to_clip = passes.projection_matrix.astype(np.float64) @ passes.view_matrix.astype(np.float64)
+    view = passes.view_matrix.astype(np.float64)
+    world_to_clip = passes.projection_matrix.astype(np.float64) @ view
     depsgraph = bpy.context.evaluated_depsgraph_get()
     pattern = stratified_points(samples)
     premultiplied, confidence = np.zeros((height, width, 3)), np.zeros((height, width))
@@ -67,15 +68,13 @@ def ideal_screen_space(scene, passes, samples=64, max_roughness=ChainSettings().
         alpha = max(float(passes.roughness[row, column]) ** 2, 1e-3)
         half = sample_visible_normals(view_local[None, None], np.array([[alpha]]), (pattern + rng.random(2)) % 1.0)[0]
         light_local = 2 * (half @ view_local)[:, None] * half - view_local
-        lambda_view = smith_lambda(np.array(view_local[2]), alpha ** 2)
+        weights = visible_normal_weight(view_local[2], light_local[:, 2], alpha ** 2)
         origin = Vector(np.array(surface) + np.array(surface_normal) * SURFACE_OFFSET
                         * np.linalg.norm(np.array(surface) - camera))
-        radiance, total, seen = np.zeros(3), 0.0, 0.0
-        for light in light_local[light_local[:, 2] > 0]:
-            weight = (1 + lambda_view) / (1 + lambda_view + smith_lambda(np.array(light[2]), alpha ** 2))
-            total += weight
+        radiance, total, seen = np.zeros(3), weights.sum(), 0.0
+        for light, weight in zip(light_local[weights > 0], weights[weights > 0]):
             hit, location, *_ = scene.ray_cast(depsgraph, origin, Vector(frame @ light))
-            pixel = _seen_pixel(passes.depth, world_to_clip, passes.view_matrix, location) if hit else None
+            pixel = _seen_pixel(passes.depth, world_to_clip, view, location) if hit else None
             if pixel is not None:
                 radiance += weight * passes.combined[pixel][:3]
                 seen += weight
@@ -85,7 +84,8 @@ def ideal_screen_space(scene, passes, samples=64, max_roughness=ChainSettings().
 
 
 def _seen_pixel(depth, world_to_clip, view, location):
-    """(row, column) where the camera sees LOCATION, or None (off screen or hidden)."""
+    """(row, column) where the camera (VIEW, WORLD_TO_CLIP: float64) sees LOCATION, or None
+    (off screen or hidden)."""
     point = np.array([*location, 1.0])
     clip = world_to_clip @ point
     if clip[3] <= 0 or abs(clip[0]) >= clip[3] or abs(clip[1]) >= clip[3]:
@@ -93,7 +93,7 @@ def _seen_pixel(depth, world_to_clip, view, location):
     height, width = depth.shape
     row = min(int((1 - clip[1] / clip[3]) / 2 * height), height - 1)
     column = min(int((clip[0] / clip[3] + 1) / 2 * width), width - 1)
-    distance = -(np.asarray(view, np.float64) @ point)[2]
+    distance = -(view @ point)[2]
     return (row, column) if abs(depth[row, column] - distance) <= SEEN_DEPTH_TOLERANCE * distance else None
 
 
