@@ -5,8 +5,8 @@
 For each scene one still is rendered through the whole chain once with each split, from the
 same samples and rays. Errors are relative mean absolute differences on the reflective pixels (the
 bench's mask): of the lamp highlights split off (Specular Direct) and of the final image. Times are
-the split's own cost (a render, or the analytic lamps' GPU pass and its transfers), the fastest of
-two frames.
+the split's own cost (a render, or the chain's analytic lamp pass, waited for), the fastest of two
+frames.
 """
 import argparse
 import os
@@ -36,7 +36,7 @@ def measure(scene_name, resolution):
     results = {}
     with lamp_world_for_run():
         for split in SPLITS:
-            request = RenderRequest(out_dir="", resolution=resolution, samples=16,
+            request = RenderRequest(out_dir="", resolution=resolution, samples=16, time_stages=True,
                                     settings=replace(ChainSettings(), lamp_split=split))
             times = []
             for _ in range(2):

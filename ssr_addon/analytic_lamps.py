@@ -12,14 +12,14 @@ computes them here instead of rendering the lamps a second time (passes.py):
   the light threshold or custom distance, and the fade below a surface's horizon.
   Lights it cannot model (light linking, square spots, more than MAX_LAMPS) are
   named, and lamp_split=analytic is refused for them in one line.
-- `lamp_specular(lamps, ...)` integrates each lamp's radiance against the
-  normalised GGX lobe, the quantity EEVEE's "Specular Light" holds (its LTC
-  integral; the pass is later multiplied by the split-sum specular colour). The
+- `AnalyticLampLight` splits them off EEVEE's "Specular Light" on the GPU
+  (lamp_split.glsl): each lamp's radiance integrated against the normalised GGX
+  lobe, the quantity that pass holds (its LTC integral; the pass is later
+  multiplied by the split-sum specular colour), times EEVEE's Shadow pass. The
   integral uses both a light-shape and a lobe strategy combined by multiple
   importance sampling (power heuristic) on a fixed stratified pattern, so
   mirrors, rough surfaces, small and large lights are all exact to sampling error.
-
-Shadows are not modelled: the caller multiplies by EEVEE's Shadow pass.
+  `lamp_specular` is the same integral unshadowed, read back (for tests).
 """
 import functools
 import math
@@ -187,7 +187,7 @@ def _albedo_texture():
     return upload(albedo_table().T[::-1])
 
 
-_SHAPES = {"sphere": 0, "facing_disk": 1, "sun": 2, "rect": 3, "ellipse": 4}  # lamp_specular.glsl's SHAPE_*
+_SHAPES = {"sphere": 0, "facing_disk": 1, "sun": 2, "rect": 3, "ellipse": 4}  # lamp_split.glsl's SHAPE_*
 
 
 def lamp_block(lamps, size, view_matrix, projection_matrix, background_depth):
@@ -206,18 +206,42 @@ def lamp_block(lamps, size, view_matrix, projection_matrix, background_depth):
         "lamp_count": len(lamps), "strata_per_side": STRATA_PER_SIDE, "lamps": records}).tobytes())
 
 
+class AnalyticLampLight:
+    """EEVEE's lamp highlights left to the GPU (lamp_split=analytic): LAMPS (scene_lamps) on
+    a frame's surfaces, seen through VIEW_MATRIX and PROJECTION_MATRIX, shadowed by SHADOW
+    (EEVEE's Shadow pass, (H, W)). The chain splits them off the specular light on the GPU,
+    from the textures it uploads anyway (`split`); numpy callers get them read back
+    (FramePasses.specular_direct)."""
+
+    def __init__(self, lamps, shadow, view_matrix, projection_matrix, background_depth):
+        self.lamps, self.shadow = tuple(lamps), shadow
+        self.view_matrix, self.projection_matrix = view_matrix, projection_matrix
+        self.background_depth = background_depth
+
+    def split(self, depth_tx, normal_tx, roughness_tx, specular_light_tx):
+        """(specular direct, specular indirect) textures: the lamps' shadowed specular light and
+        the rest of SPECULAR_LIGHT_TX, on the surfaces of DEPTH_TX, NORMAL_TX (world) and
+        ROUGHNESS_TX."""
+        size = (depth_tx.width, depth_tx.height)
+        direct_tx, indirect_tx = empty_texture(size), empty_texture(size)
+        get_pass("lamp_split").draw(
+            [direct_tx, indirect_tx],
+            samplers=(("depth_tx", depth_tx), ("normal_tx", normal_tx), ("roughness_tx", roughness_tx),
+                      ("albedo_tx", _albedo_texture()), ("specular_light_tx", specular_light_tx),
+                      ("shadow_tx", upload(self.shadow))),
+            uniform_blocks=(("lamp_block", lamp_block(self.lamps, size, self.view_matrix, self.projection_matrix,
+                                                      self.background_depth)),))
+        return direct_tx, indirect_tx
+
+
 def lamp_specular(lamps, depth, normal, roughness, view_matrix, projection_matrix, background_depth):
     """(H, W, 3) unshadowed specular light of LAMPS on the surfaces of a frame (DEPTH, world
     NORMAL, ROUGHNESS in image order; the camera's matrices), drawn on the GPU."""
     ensure_backend()
-    height, width = depth.shape
-    target = empty_texture((width, height))
-    get_pass("lamp_specular").draw(
-        [target], samplers=(("depth_tx", upload(depth)), ("normal_tx", upload(normal)),
-                            ("roughness_tx", upload(roughness)), ("albedo_tx", _albedo_texture())),
-        uniform_blocks=(("lamp_block", lamp_block(lamps, (width, height), view_matrix, projection_matrix,
-                                                  background_depth)),))
-    return download(target, 3)
+    light = AnalyticLampLight(lamps, np.ones_like(depth), view_matrix, projection_matrix, background_depth)
+    direct_tx, _ = light.split(upload(depth), upload(normal), upload(roughness), upload(np.zeros_like(normal)))
+    return download(direct_tx, 3)
+
 
 def require_modelled(unmodelled):
     """Refuse lamp_split=analytic for lights it cannot model, in one line."""

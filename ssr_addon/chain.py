@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .analytic_lamps import AnalyticLampLight
 from .convergence import ConvergenceCheck
 from .frame_sequence import FrameSequence
 from .gpu_backend import TexturePool, lap, uniform_buffer, upload
@@ -39,24 +40,33 @@ class ChainInputs:
     clip_end: float
     # Pixels rougher than this get cheap rays; ties at it are expensive with this probability.
     ray_budget: tuple = (1.0, 1.0)
+    specular_direct_tx: object = None  # lamp highlights the chain split off (analytic), None if the passes had them
 
     @property
     def size(self):
         return self.depth_tx.width, self.depth_tx.height
 
     @classmethod
-    def from_passes(cls, passes, settings):
-        """Upload FramePasses; the lit scene (Combined) is also what reflections show."""
+    def from_passes(cls, passes, settings, timer=None):
+        """Upload FramePasses (TIMER: "upload"); the lit scene (Combined) is also what reflections
+        show. Lamp highlights computed on the GPU are split off here ("lamp_split")."""
         combined_tx = upload(passes.combined)
-        return cls(
-            radiance_tx=combined_tx, depth_tx=upload(passes.depth), normal_tx=upload(passes.normal),
-            roughness_tx=upload(passes.roughness), combined_tx=combined_tx,
-            specular_color_tx=upload(passes.specular_color),
-            specular_indirect_tx=upload(passes.specular_indirect), f0_tx=upload(passes.f0),
-            motion_tx=upload(passes.motion),
+        depth_tx, normal_tx, roughness_tx = upload(passes.depth), upload(passes.normal), upload(passes.roughness)
+        analytic = isinstance(passes.lamp_light, AnalyticLampLight)
+        specular_tx = upload(passes.specular_light if analytic else passes.specular_indirect)
+        inputs = cls(
+            radiance_tx=combined_tx, depth_tx=depth_tx, normal_tx=normal_tx, roughness_tx=roughness_tx,
+            combined_tx=combined_tx, specular_color_tx=upload(passes.specular_color),
+            specular_indirect_tx=specular_tx, f0_tx=upload(passes.f0), motion_tx=upload(passes.motion),
             view_matrix=passes.view_matrix, projection_matrix=passes.projection_matrix,
             clip_start=passes.clip_start, clip_end=passes.clip_end,
             ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings))
+        lap(timer, "upload")
+        if analytic:
+            inputs.specular_direct_tx, inputs.specular_indirect_tx = passes.lamp_light.split(
+                depth_tx, normal_tx, roughness_tx, specular_tx)
+            lap(timer, "lamp_split", inputs.specular_indirect_tx)
+        return inputs
 
 
 ROUGHNESS_BINS = 4096  # ray_budget's histogram: only the bin holding the threshold is sorted

@@ -53,13 +53,13 @@ PARAMS_FIELDS = (
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
 )
 
-# Lights of lamp_split=analytic (analytic_lamps.py, lamp_specular.glsl); it refuses a scene
+# Lights of lamp_split=analytic (analytic_lamps.py, lamp_split.glsl); it refuses a scene
 # with more.
 MAX_LAMPS = 64
 
 LAMP_FIELDS = (
     ("vec3", "position", "world position; for a sun, the unit direction towards it"),
-    ("int", "shape", "SHAPE_* of lamp_specular.glsl"),
+    ("int", "shape", "SHAPE_* of lamp_split.glsl"),
     ("vec3", "radiance", "emitted radiance, specular factor included"),
     ("float", "influence_radius", "local lights fade to nothing at this distance"),
     ("vec3", "x_axis", "the light's local axes in world space (it emits along -z)"),

@@ -141,8 +141,8 @@ class LiveSession:
                                               chain.lamp_split, timer)
         finally:
             self._absorb_updates = True  # and any the capture caused by the time it failed
+        self._view, self._passes = ProgressiveView(passes, chain, self.pool, inputs_timer=timer), passes
         self._capture_ms = sum(timer.milliseconds.values())
-        self._view, self._passes = ProgressiveView(passes, chain, self.pool), passes
         self._show(scene, self._view.step())
 
     def _clip(self, scene):

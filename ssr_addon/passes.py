@@ -5,6 +5,7 @@ reads it back (Blender 5 writes one EXR part per pass). Arrays are float32 in
 image order (row 0 is the top row).
 """
 import contextlib
+import functools
 import os
 import tempfile
 from dataclasses import dataclass
@@ -13,9 +14,9 @@ import bpy
 import numpy as np
 import OpenImageIO as oiio
 
-from .analytic_lamps import lamp_specular, require_modelled, scene_lamps
+from .analytic_lamps import AnalyticLampLight, require_modelled, scene_lamps
 from .errors import SSRError
-from .gpu_backend import lap
+from .gpu_backend import download, ensure_backend, lap, upload
 from .overrides import TemporaryChanges
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .scene_io import camera_matrices, require_camera, require_square_pixels
@@ -56,10 +57,10 @@ class FramePasses:
     specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
     f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
     motion: np.ndarray           # (H, W, 2) screen offset to the previous frame, pixels, y up (Vector pass)
-    specular_indirect: np.ndarray  # (H, W, 3) reflected light SSR replaces, before FG: probes/world and,
-                                   # with the scene's ray tracing on, EEVEE's own traced reflections
-                                   # (EEVEE); world, emissive and other surfaces (Cycles)
-    specular_direct: np.ndarray  # (H, W, 3) lamp highlights (lamps the camera cannot see), kept as they are
+    specular_light: np.ndarray   # (H, W, 3) all reflected light, before FG: EEVEE's Specular Light,
+                                 # Cycles' Glossy Direct + Indirect
+    lamp_light: object           # the part of it that stays: highlights of lamps the camera cannot see,
+                                 # (H, W, 3), or an AnalyticLampLight the chain computes on the GPU
     view_matrix: np.ndarray      # (4, 4) world to view
     projection_matrix: np.ndarray  # (4, 4) view to clip
     clip_start: float
@@ -71,6 +72,23 @@ class FramePasses:
     @property
     def size(self):
         return self.depth.shape[1], self.depth.shape[0]
+
+    @functools.cached_property
+    def specular_direct(self):
+        """(H, W, 3) lamp highlights, kept as they are (read back from the GPU where analytic)."""
+        if isinstance(self.lamp_light, AnalyticLampLight):
+            ensure_backend()
+            direct_tx, _ = self.lamp_light.split(upload(self.depth), upload(self.normal), upload(self.roughness),
+                                                 upload(self.specular_light))
+            return download(direct_tx, 3)
+        return self.lamp_light
+
+    @functools.cached_property
+    def specular_indirect(self):
+        """(H, W, 3) reflected light SSR replaces, before FG: probes/world and, with the scene's
+        ray tracing on, EEVEE's own traced reflections (EEVEE); world, emissive and other
+        surfaces (Cycles). As lamp_split.glsl splits it on the GPU."""
+        return np.maximum(self.specular_light - self.specular_direct, 0.0)
 
 
 def undo_coverage(value, coverage, fallback):
@@ -132,8 +150,8 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     render: a second render, lamps only (EEVEE) or lamps hidden (Cycles), exact;
     unshadowed: a second render of EEVEE's lamps only without shadows, times the Shadow pass;
     off: no split (specular_direct is zero), as when nothing replaces the indirect specular.
-    TIMER (a StageTimer) gets the engine's render as "render" and the split (a second
-    render or the analytic lamps), the add-on's own cost, as "lamp_split".
+    TIMER (a StageTimer) gets the engine's render as "render" and a second render of
+    the split, the add-on's own cost, as "lamp_split" (the chain times the analytic split).
     The scene, its view layer and its materials are exactly as before on return.
     """
     camera = require_camera(scene)
@@ -154,12 +172,9 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         view, projection = camera_matrices(scene, width, height)
         surface = surface_layers(layers)
         if engine == "eevee":
-            if lamp_split == "analytic":
-                lamp_specular = lambda shadows: analytic_lamp_specular(scene, surface, view, projection, timer)
-            else:
-                lamp_specular = lambda shadows: _lamp_specular(scene, folder, timer, shadows)
-            lamp_specular = lamp_specular if has_lamps(scene) else None
-            specular_direct, specular_indirect = split_eevee_specular(layers, lamp_split, lamp_specular)
+            specular_light = _layer(layers, "Glossy Direct")
+            lamp_light = eevee_lamp_light(scene, layers, lamp_split, view, projection,
+                                          lambda shadows: _lamp_specular(scene, folder, timer, shadows))
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
             # the world and emissive surfaces; Glossy Indirect what other surfaces reflect.
@@ -169,9 +184,9 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             glossy_indirect = _layer(layers, "Glossy Indirect")
             lamps = _offscreen_lamps(scene) if lamp_split == "render" else []
             emitter_specular = _emitter_specular(scene, folder, lamps, timer) if lamps else glossy_direct
-            specular_direct = np.maximum(glossy_direct - emitter_specular, 0.0)
-            specular_indirect = glossy_indirect + emitter_specular
-    return frame_passes(layers, surface, specular_direct, specular_indirect, view, projection,
+            specular_light = glossy_direct + glossy_indirect
+            lamp_light = np.maximum(glossy_direct - emitter_specular, 0.0)
+    return frame_passes(layers, surface, specular_light, lamp_light, view, projection,
                         (camera.data.clip_start, camera.data.clip_end), engine, samples, material_warnings)
 
 
@@ -183,20 +198,21 @@ def rendered_view_layer(scene):
     return view_layer
 
 
-def split_eevee_specular(layers, lamp_split, lamp_specular):
-    """(specular_direct, specular_indirect) of EEVEE's "Specular Light", which holds lamp
-    highlights and probe/world reflections together. LAMP_SPLIT: a lamp_split_method;
-    LAMP_SPECULAR(shadows) gives the specular light of the lamps alone (None: no lamps)."""
-    specular_all = _layer(layers, "Glossy Direct")
-    if lamp_split == "off" or lamp_specular is None:
-        specular_direct = np.zeros_like(specular_all)
-    elif lamp_split in SHADOWED_SPLITS:
-        # The Shadow pass is each sample's shadowed share of all lamp light (every lamp,
-        # diffuse and specular together): exact for one lamp, a lamp-weighted mean for more.
-        specular_direct = lamp_specular(False) * _layer(layers, "Shadow")[..., :1]
-    else:
-        specular_direct = lamp_specular(True)
-    return specular_direct, np.maximum(specular_all - specular_direct, 0.0)
+def eevee_lamp_light(scene, layers, lamp_split, view, projection, render_lamps):
+    """The lamp highlights in EEVEE's "Specular Light" (LAYERS, a frame's passes), which holds
+    them and probe/world reflections together: FramePasses.lamp_light. LAMP_SPLIT: a
+    lamp_split_method; VIEW and PROJECTION: the camera's matrices; RENDER_LAMPS(shadows)
+    renders the specular light of the lamps alone."""
+    if lamp_split == "off" or not has_lamps(scene):
+        return np.zeros_like(_layer(layers, "Glossy Direct"))
+    # The Shadow pass is each sample's shadowed share of all lamp light (every lamp,
+    # diffuse and specular together): exact for one lamp, a lamp-weighted mean for more.
+    if lamp_split == "analytic":
+        return AnalyticLampLight(scene_lamps(scene)[0], _layer(layers, "Shadow")[..., 0], view, projection,
+                                 BACKGROUND_DEPTH)
+    if lamp_split == "unshadowed":
+        return render_lamps(False) * _layer(layers, "Shadow")[..., :1]
+    return render_lamps(True)
 
 
 def surface_layers(layers):
@@ -213,21 +229,12 @@ def surface_layers(layers):
     return depth, normal, roughness, coverage
 
 
-def analytic_lamp_specular(scene, surface, view, projection, timer=None):
-    """The unshadowed specular light of SCENE's lamps on SURFACE (surface_layers of a frame)
-    seen through VIEW and PROJECTION, computed (analytic_lamps) rather than rendered; TIMER
-    gets it as "lamp_split"."""
-    depth, normal, roughness, _ = surface
-    specular = lamp_specular(scene_lamps(scene)[0], depth, normal, roughness, view, projection, BACKGROUND_DEPTH)
-    lap(timer, "lamp_split")
-    return specular
-
-
-def frame_passes(layers, surface, specular_direct, specular_indirect, view, projection, clip, engine, samples,
+def frame_passes(layers, surface, specular_light, lamp_light, view, projection, clip, engine, samples,
                  material_warnings=()):
     """FramePasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
     Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), their SURFACE
-    (surface_layers), the specular split, the camera's matrices and CLIP (clip_start, clip_end)."""
+    (surface_layers), the specular light and its lamp highlights, the camera's matrices and
+    CLIP (clip_start, clip_end)."""
     depth, normal, roughness, coverage = surface
     passes_shape = depth.shape
     return FramePasses(
@@ -240,8 +247,8 @@ def frame_passes(layers, surface, specular_direct, specular_indirect, view, proj
         # Cycles has no Vector pass while motion blur is on: then objects count as still.
         motion=np.ascontiguousarray(layers["Vector"][..., :2]) if "Vector" in layers
         else np.zeros(passes_shape + (2,), np.float32),
-        specular_indirect=specular_indirect,
-        specular_direct=specular_direct,
+        specular_light=specular_light,
+        lamp_light=lamp_light,
         view_matrix=view, projection_matrix=projection,
         clip_start=clip[0], clip_end=clip[1], engine=engine, samples=samples,
         material_warnings=tuple(material_warnings))

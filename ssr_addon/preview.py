@@ -6,7 +6,7 @@ then refined step by step as the live view refines it (progressive), until it co
 or reaches --iterations.
 Writes preview.exr and preview.png (converged), first.png (the first image the live
 view would show) and preview.json (timings: time to the first image, capture and
-chain milliseconds per iteration).
+chain milliseconds per iteration; the capture's include the upload and the lamp split).
 """
 import os
 import time
@@ -42,7 +42,7 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, log=
                                      capture_timer)
         finally:
             capture.release()
-    refining = ProgressiveView(passes, settings)
+    refining = ProgressiveView(passes, settings, inputs_timer=capture_timer)
     first = download(refining.step().final_tx)
     first_image_ms = (time.perf_counter() - started) * 1000.0
     while not refining.done and (iterations is None or refining.iterations < iterations):

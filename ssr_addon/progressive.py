@@ -17,18 +17,20 @@ class ProgressiveView:
     """The chain on PASSES (FramePasses of one view) with SETTINGS, stepped until done.
 
     POOL (a gpu_backend.TexturePool) is reused from the view before, so a new view
-    allocates nothing. `timer` holds the chain's stage times of every step so far.
+    allocates nothing. INPUTS_TIMER (a StageTimer, the capture's) gets the upload and
+    the lamp split; `timer` holds the chain's stage times of every step so far.
     """
 
-    def __init__(self, passes, settings, pool=None):
+    def __init__(self, passes, settings, pool=None, inputs_timer=None):
         ensure_backend()
         self.state = ChainState.still()
         if pool is not None:
             self.state.pool = pool
         self.state.begin_frame(0)
         self.settings = settings
+        inputs = ChainInputs.from_passes(passes, settings, inputs_timer)
         self.timer = StageTimer()
-        self.run = FrameRun(ChainInputs.from_passes(passes, settings), settings, self.state, self.timer)
+        self.run = FrameRun(inputs, settings, self.state, self.timer)
         self._pending = self.run.next_batch()
         self.outputs = None
 

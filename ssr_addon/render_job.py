@@ -117,13 +117,14 @@ def render_frame(scene, request, state=None):
     if not use_ssr:
         return images, timer
     ensure_backend()
-    inputs = ChainInputs.from_passes(passes, request.settings)
-    timer.lap("upload")
+    inputs = ChainInputs.from_passes(passes, request.settings, timer)
     if state is None:
         state = ChainState.still()
         state.begin_frame(scene.frame_current)
     outputs = run_chain(inputs, request.settings, state, timer)
     images.update(chain_images(passes, outputs, request.settings))
+    if inputs.specular_direct_tx is not None:  # split on the GPU: read back only if written (pass_channels)
+        images["specular_split_tx"] = (inputs.specular_direct_tx, inputs.specular_indirect_tx)
     timer.lap("readback")
     return images, timer
 
@@ -179,8 +180,9 @@ def pass_channels(images):
     layer("Roughness", passes.roughness, "V")
     layer("Specular Color", passes.specular_color, "RGB")
     layer("F0", passes.f0, "RGB")
-    layer("Specular Direct", passes.specular_direct, "RGB")
-    layer("Specular Indirect", passes.specular_indirect, "RGB")
+    split_tx = images.get("specular_split_tx")
+    layer("Specular Direct", download(split_tx[0], 3) if split_tx else passes.specular_direct, "RGB")
+    layer("Specular Indirect", download(split_tx[1], 3) if split_tx else passes.specular_indirect, "RGB")
     layer("SSR Reflection", reflection, "RGB")  # premultiplied by confidence: what FG multiplies
     layer("SSR Confidence", reflection[..., 3], "V")
     # The stages before the temporal filter, last iteration: the resolve (firefly guard

@@ -6,8 +6,8 @@ FramePasses a render does (passes.frame_passes), so the chain cannot tell them a
 - Combined, Normal, Specular Light and Color, and the material AOVs come as they are;
 - depth is the view-axis distance of the Position pass;
 - lamp highlights are split off Specular Light as a render splits them
-  (passes.split_eevee_specular): a draw of the lamps alone (passes.lamps_alone), with
-  the Shadow pass where the split is unshadowed;
+  (passes.eevee_lamp_light): computed in the chain (analytic), or a draw of the lamps
+  alone (passes.lamps_alone), with the Shadow pass where the split is unshadowed;
 - the view holds still, so motion is zero.
 Overlays are off while capturing: the grid and outlines would land in the passes.
 Every setting the capture changes (shading pass, overlays, the scene for the lamp draw)
@@ -22,8 +22,8 @@ from .errors import SSRError
 from .gpu_backend import download, lap
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
-from .passes import (SHADOWED_SPLITS, SSR_BASE_RAYTRACING, analytic_lamp_specular, frame_passes, has_lamps,
-                     lamp_split_method, lamps_alone, split_eevee_specular, surface_layers, use_eevee_raytracing)
+from .passes import (SHADOWED_SPLITS, SSR_BASE_RAYTRACING, eevee_lamp_light, frame_passes, lamp_split_method,
+                     lamps_alone, surface_layers, use_eevee_raytracing)
 
 # Shadings whose viewport draw is EEVEE's and has render passes.
 CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
@@ -54,7 +54,8 @@ class ViewportCapture:
 
     def capture(self, scene, view_layer, view_matrix, projection_matrix, size, clip, lamp_split="auto", timer=None):
         """FramePasses of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX (4x4 arrays) at SIZE
-        (width, height); CLIP is (clip_start, clip_end). TIMER gets "capture" and "lamp_split"."""
+        (width, height); CLIP is (clip_start, clip_end). TIMER gets "capture", and "lamp_split"
+        where the lamps are drawn alone."""
         lamp_split = lamp_split_method("eevee", lamp_split, scene)
         view, projection = _matrix(view_matrix), _matrix(projection_matrix)
         with TemporaryChanges() as changes:
@@ -79,15 +80,13 @@ class ViewportCapture:
                 lap(timer, "lamp_split")
                 return specular
 
-            def computed_lamp_specular(shadows):
-                return analytic_lamp_specular(scene, surface, view_matrix, projection_matrix, timer)
-            lamp_specular = computed_lamp_specular if lamp_split == "analytic" else rendered_lamp_specular
-            specular_direct, specular_indirect = split_eevee_specular(
-                layers, lamp_split, lamp_specular if has_lamps(scene) else None)
+            view_array = np.asarray(view_matrix, np.float32)
+            projection_array = np.asarray(projection_matrix, np.float32)
+            lamp_light = eevee_lamp_light(scene, layers, lamp_split, view_array, projection_array,
+                                          rendered_lamp_specular)
         view_layer.update()
-        return frame_passes(layers, surface, specular_direct, specular_indirect, np.asarray(view_matrix, np.float32),
-                            np.asarray(projection_matrix, np.float32), clip, "eevee", scene.eevee.taa_samples,
-                            warnings)
+        return frame_passes(layers, surface, layers["Glossy Direct"], lamp_light, view_array, projection_array, clip,
+                            "eevee", scene.eevee.taa_samples, warnings)
 
     def combined(self, scene, view_layer, view_matrix, projection_matrix, size):
         """EEVEE's image of the view alone, (H, W, 4)."""

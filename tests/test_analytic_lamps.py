@@ -183,3 +183,37 @@ def test_a_lamp_array_packs_only_the_lamps_given():
     assert np.array_equal(words, padded) and words.any()
     with pytest.raises(ValueError, match="room for"):
         LAMP_BLOCK.pack(dict(values, lamps=[lamp] * (MAX_LAMPS + 1)))
+
+
+def test_the_chain_splits_the_lamps_off_on_the_gpu(gpu_backend):
+    """With lamp_split=analytic nothing is read back before the chain: the passes bring EEVEE's
+    whole Specular Light and the lamps, and the chain splits them from the textures it uploads.
+    Its image is the one the same split gives read back and uploaded, and the passes EXR holds
+    the split the chain used: highlights and the rest make up the Specular Light."""
+    import dataclasses
+    import os
+
+    from conftest import SCENES
+    from ssr_addon.analytic_lamps import AnalyticLampLight
+    from ssr_addon.chain import ChainInputs, ChainState, run_chain
+    from ssr_addon.gpu_backend import download
+    from ssr_addon.params import ChainSettings
+    from ssr_addon.render_job import RenderRequest, pass_channels, render_frame
+    from ssr_addon.scene_io import load_scene
+    scene = load_scene(os.path.join(SCENES, "mirror_floor.py"))
+    settings = ChainSettings(lamp_split="analytic")
+    images, timer = render_frame(scene, RenderRequest(out_dir="", resolution=(64, 36), samples=4, settings=settings))
+    passes = images["passes"]
+    assert isinstance(passes.lamp_light, AnalyticLampLight) and "lamp_split" in timer.milliseconds
+
+    read_back = dataclasses.replace(passes, lamp_light=passes.specular_direct)
+    state = ChainState.still()
+    state.begin_frame(scene.frame_current)
+    final = download(run_chain(ChainInputs.from_passes(read_back, settings), settings, state).final_tx)
+    np.testing.assert_allclose(images["final"], final, atol=1e-6)
+
+    channels = pass_channels(images)
+    direct, indirect = (np.stack([channels[f"Specular {part}.{c}"] for c in "RGB"], -1) for part in ("Direct", "Indirect"))
+    assert direct.max() > 0.1, "the lamps must light the floor"
+    np.testing.assert_allclose(direct, passes.specular_direct, atol=1e-6)
+    np.testing.assert_allclose(direct + indirect, np.maximum(passes.specular_light, direct), rtol=1e-5, atol=1e-6)

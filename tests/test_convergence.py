@@ -65,13 +65,16 @@ def chain_error(spheres, settings, frames=1):
 ESTIMATOR_ONLY = dict(use_spatial_filter=False, use_firefly_guard=False, noise_threshold=0.0)
 
 
-def test_error_falls_as_accumulated_frames_grow(spheres):
+def test_accumulation_adds_no_error_against_cycles(spheres):
+    """Against Cycles this scene's error is bias (EEVEE's lighting), not noise: from 1 to 64
+    iterations its MSE moves by under 2 %, either way (1 and 16 iterations land within 1e-6
+    of each other by chance). That accumulation converges is held elsewhere: to the exact
+    lobe integral (test_glossy_resolve), at 1/sqrt(n) (below), until converged (below).
+    Here: accumulating must not add error beyond 1 % (the ratio estimator's few-sample bias
+    may land on either side of Cycles), and the reflections must beat the probes."""
     errors = {n: chain_error(spheres, ChainSettings(accumulate_frames=n, **ESTIMATOR_ONLY)) for n in (1, 16)}
     probe_only = chain_error(spheres, ChainSettings(use_ssr=True, max_roughness=0.0))
     print("RMSE vs Cycles by accumulated frames:", errors, "probe only:", probe_only)
-    # A single iteration's noise (test below) is small beside this scene's bias against
-    # Cycles (EEVEE's lighting), so accumulation must not add error beyond 1 % (the ratio
-    # estimator's few-sample bias may land on either side of Cycles) and must beat the probes.
     assert errors[16] <= 1.01 * errors[1]
     assert errors[16] < 0.95 * probe_only
 

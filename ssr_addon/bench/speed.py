@@ -1,9 +1,11 @@
 """Speed's yardstick, the full-screen copy pass timed on this GPU in the same run, and the chain's
 milliseconds per stage at the deck's 1600x900 (make bench-chain, the slides' Performance)."""
+import dataclasses
 import statistics
 
 import numpy as np
 
+from ..analytic_lamps import AnalyticLampLight
 from ..chain import ChainInputs, ChainState, run_chain
 from ..gpu_backend import StageTimer, empty_texture, ensure_backend
 from ..passes import FramePasses, render_passes
@@ -60,13 +62,16 @@ def upscaled_passes(scene, size=COPY_PASS_LARGE, factor=5):
     """SCENE's EEVEE passes rendered at SIZE / FACTOR and repeated up to SIZE: real content at the
     pixel count being timed, without a minutes-long software render."""
     small = render_passes(scene, "eevee", samples=4, resolution=(size[0] // factor, size[1] // factor))
-    fields = {}
-    for name, value in vars(small).items():
+
+    def upscaled(value):
+        if isinstance(value, AnalyticLampLight):
+            return AnalyticLampLight(value.lamps, upscaled(value.shadow), value.view_matrix, value.projection_matrix,
+                                     value.background_depth)
         if isinstance(value, np.ndarray) and value.shape[:2] == small.depth.shape:
-            value = value.repeat(factor, axis=0).repeat(factor, axis=1)
-        fields[name] = value
+            return value.repeat(factor, axis=0).repeat(factor, axis=1)
+        return value
     ensure_backend()
-    return FramePasses(**fields)
+    return FramePasses(**{field.name: upscaled(getattr(small, field.name)) for field in dataclasses.fields(small)})
 
 
 def chain_stage_ms(passes, settings, frames):

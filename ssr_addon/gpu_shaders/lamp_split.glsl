@@ -1,18 +1,22 @@
-/* Lamp highlights from the scene's lights (lamp_split = analytic, the Cost issue): what
- * EEVEE's "Specular Light" holds of each lamp, so SSR can replace the rest without a
- * second, lamps-only render.
+/* Lamp split (lamp_split = analytic, the Cost issue): EEVEE's "Specular Light" holds lamp
+ * highlights and probe/world reflections together; SSR replaces only the latter. This pass
+ * computes what the light holds of each lamp and splits it off, inside the chain, from
+ * textures it has uploaded anyway: no second, lamps-only render, and nothing read back.
  *
  * Inputs:  depth_tx (view depth), normal_tx (world normal), roughness_tx, albedo_tx
- *          (the GGX lobe's reflectance with F = 1 over n.v and roughness), and the
- *          lamps in lamp_block (analytic_lamps.py reads them as EEVEE sets its lights up).
- * Output:  lamp_specular_img = (unshadowed lamp specular light, 1 on surfaces).
+ *          (the GGX lobe's reflectance with F = 1 over n.v and roughness), specular_light_tx
+ *          (EEVEE's Specular Light), shadow_tx (EEVEE's Shadow pass), and the lamps in
+ *          lamp_block (analytic_lamps.py reads them as EEVEE sets its lights up).
+ * Outputs: specular_direct_img = (the lamps' specular light, shadowed, 1),
+ *          specular_indirect_img = (the rest of the Specular Light, which SSR replaces, 1).
  *
  * EEVEE integrates each light's shape against the normalised lobe (LTC). Here the same
  * integral is estimated with two strategies, points on the shape and the lobe's visible
  * normals, on one fixed stratified pattern, combined by multiple importance sampling
  * (power heuristic): a mirror is exact through the lobe samples, a rough surface under a
  * small lamp through the shape samples. Spheres, Soft Falloff disks and suns are disks
- * facing the point, as in EEVEE. Shadows are the caller's (EEVEE's Shadow pass). */
+ * facing the point, as in EEVEE. Shadows come from EEVEE's Shadow pass, each sample's
+ * shadowed share of all lamp light: exact for one lamp, a lamp-weighted mean for more. */
 
 #define SHAPE_SPHERE 0
 #define SHAPE_FACING_DISK 1
@@ -163,14 +167,9 @@ float lamp_integral(Emitter emitter, mat3 frame, vec3 v, float alpha, float albe
   return sum / float(count);
 }
 
-void main()
+/* The unshadowed specular light of every lamp at a surface pixel. */
+vec3 lamp_light(ivec2 texel, float depth)
 {
-  ivec2 texel = ivec2(gl_FragCoord.xy);
-  float depth = texelFetch(depth_tx, texel, 0).r;
-  lamp_specular_img = vec4(0.0);
-  if (depth >= lamp_block.background_depth) {
-    return;
-  }
   vec2 uv = (vec2(texel) + 0.5) / lamp_block.viewport_size;
   vec3 v;
   vec3 position = world_position(uv, depth, v);
@@ -191,5 +190,18 @@ void main()
       light += lamp.radiance * attenuation * lamp_integral(lamp_emitter(lamp, to_lamp), frame, v, alpha, albedo);
     }
   }
-  lamp_specular_img = vec4(light, 1.0);
+  return light;
+}
+
+void main()
+{
+  ivec2 texel = ivec2(gl_FragCoord.xy);
+  float depth = texelFetch(depth_tx, texel, 0).r;
+  vec3 specular_light = texelFetch(specular_light_tx, texel, 0).rgb;
+  vec3 direct = vec3(0.0);
+  if (depth < lamp_block.background_depth) {
+    direct = lamp_light(texel, depth) * texelFetch(shadow_tx, texel, 0).r;
+  }
+  specular_direct_img = vec4(direct, 1.0);
+  specular_indirect_img = vec4(max(specular_light - direct, vec3(0.0)), 1.0);
 }
