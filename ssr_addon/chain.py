@@ -150,32 +150,37 @@ def pyramid_levels(size):
 
 
 def atlas_layout(levels):
-    """(atlas size, per-level rectangles): level 0 at the origin, the rest stacked to its right."""
-    rects = [(0, 0, *levels[0])]
-    y = 0
+    """(atlas size, per-level rectangles): levels 1.. stacked in a column at the origin and
+    level 0 to its right, so the reduced levels' rectangles fit a texture the column's size."""
+    column_width = levels[1][0] if len(levels) > 1 else 0
+    rects, y = [(column_width, 0, *levels[0])], 0
     for width, height in levels[1:]:
-        rects.append((levels[0][0], y, width, height))
+        rects.append((0, y, width, height))
         y += height
-    atlas_width = levels[0][0] + (levels[1][0] if len(levels) > 1 else 0)
-    return (atlas_width, max(levels[0][1], y)), rects
+    return (column_width + levels[0][0], max(levels[0][1], y)), rects
 
 
 def build_pyramid(source_tx, reduction, pool, role, level_count=None):
-    """Reduce SOURCE level by level ('hiz_downsample': min, 'color_downsample': mean) and pack
-    the levels into one atlas texture; returns (atlas, rectangles)."""
+    """Reduce SOURCE level by level ('hiz_downsample': min, 'color_downsample': mean) into one
+    atlas texture; returns (atlas, rectangles).
+
+    One draw a level: each writes its rectangle of the atlas and, for the next level to read
+    (a texture may not be read while drawn into), of one of two scratch textures the size of
+    the reduced levels' column, taking turns (a framebuffer draws where all its textures are)."""
     levels = pyramid_levels((source_tx.width, source_tx.height))[:level_count]
     atlas_size, rects = atlas_layout(levels)
     channels = 1 if reduction == "hiz_downsample" else 4
     atlas = pool.get(f"{role}_atlas", atlas_size, channels)
-    packer = get_pass("pyramid_pack")
-    level_tx = source_tx
-    for index, rect in enumerate(rects):
-        if index > 0:
-            next_tx = pool.get(f"{role}_level{index}", rect[2:], channels)
-            get_pass(reduction).draw([next_tx], samplers=(("source_tx", level_tx),))
-            level_tx = next_tx
-        packer.draw([atlas], samplers=(("level_tx", level_tx),),
-                    constants=(("level_offset", rect[:2]),), region=rect)
+    get_pass("pyramid_pack").draw([atlas], samplers=(("level_tx", source_tx),),
+                                  constants=(("level_offset", rects[0][:2]),), region=rects[0])
+    column = (levels[1][0], sum(height for _, _, _, height in rects[1:])) if len(levels) > 1 else None
+    source, source_rect = source_tx, (0, 0, *levels[0])
+    for index, rect in enumerate(rects[1:], 1):
+        scratch = pool.get(f"{role}_scratch{index % 2}", column, channels)
+        get_pass(reduction).draw([atlas, scratch], samplers=(("source_tx", source),),
+                                 constants=(("source_offset", source_rect[:2]), ("source_size", source_rect[2:]),
+                                            ("level_offset", rect[:2])), region=rect)
+        source, source_rect = scratch, rect
     return atlas, rects
 
 

@@ -41,12 +41,16 @@ class PassDeclaration:
 _TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "surface_ray_lib.glsl", "linear_march_lib.glsl",
                     "hiz_march_lib.glsl", "ggx_lib.glsl")
 
+# Where a pyramid level reads its source and draws itself (chain.build_pyramid).
+_PYRAMID_LEVEL = (("IVEC2", "source_offset"), ("IVEC2", "source_size"), ("IVEC2", "level_offset"))
+
 PASSES = {
     "copy": PassDeclaration("copy.glsl", ("source_tx",), ("copy_img",), libraries=(), uses_params=False),
-    "hiz_downsample": PassDeclaration("pyramid_downsample.glsl", ("source_tx",), ("level_img",),
-                                      libraries=(), defines=(("REDUCE_MIN", ""),), uses_params=False),
-    "color_downsample": PassDeclaration("pyramid_downsample.glsl", ("source_tx",), ("level_img",),
-                                        libraries=(), uses_params=False),
+    "hiz_downsample": PassDeclaration("pyramid_downsample.glsl", ("source_tx",), ("atlas_img", "level_img"),
+                                      libraries=(), defines=(("REDUCE_MIN", ""),), push_constants=_PYRAMID_LEVEL,
+                                      uses_params=False),
+    "color_downsample": PassDeclaration("pyramid_downsample.glsl", ("source_tx",), ("atlas_img", "level_img"),
+                                        libraries=(), push_constants=_PYRAMID_LEVEL, uses_params=False),
     "pyramid_pack": PassDeclaration("pyramid_pack.glsl", ("level_tx",), ("atlas_img",), libraries=(),
                                     push_constants=(("IVEC2", "level_offset"),), uses_params=False),
     "trace": PassDeclaration("trace.glsl", ("depth_tx", "normal_tx", "roughness_tx", "hiz_tx"),

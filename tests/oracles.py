@@ -165,16 +165,22 @@ def trace_mirror_rays(depth, normal_view, roughness, view_to_clip, clip_start, c
     return result
 
 
-def min_pyramid(depth_gl):
-    """pyramid_downsample.glsl with REDUCE_MIN: levels down to 1x1, ceil halving (GL row order)."""
-    levels = [depth_gl]
-    while max(levels[-1].shape) > 1:
+def reduction_pyramid(image_gl, reduce):
+    """pyramid_downsample.glsl: levels down to 1x1, ceil halving (GL row order), each texel
+    REDUCE (np.nanmin, np.nanmean) of the 2x2 texels it covers, fewer on an odd edge."""
+    levels = [image_gl]
+    while max(levels[-1].shape[:2]) > 1:
         source = levels[-1]
         height, width = math.ceil(source.shape[0] / 2), math.ceil(source.shape[1] / 2)
-        padded = np.full((height * 2, width * 2), np.inf, F32)
+        padded = np.full((height * 2, width * 2) + source.shape[2:], np.nan, F32)
         padded[:source.shape[0], :source.shape[1]] = source
-        levels.append(padded.reshape(height, 2, width, 2).min(axis=(1, 3)))
+        levels.append(reduce(padded.reshape(height, 2, width, 2, *source.shape[2:]), axis=(1, 3)))
     return levels
+
+
+def min_pyramid(depth_gl):
+    """pyramid_downsample.glsl with REDUCE_MIN."""
+    return reduction_pyramid(depth_gl, np.nanmin)
 
 
 def ggx_normal_cdf(cos_theta_h, alpha):

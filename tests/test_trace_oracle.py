@@ -1,8 +1,9 @@
 """The GLSL tracers agree with their numpy oracles, hit for hit, on analytic depth buffers."""
 import numpy as np
+import pytest
 
 from gpu_harness import CLIP_END, CLIP_START, run_synthetic_chain
-from oracles import march_linear, march_pixel_walk, min_pyramid, trace_mirror_rays
+from oracles import march_linear, march_pixel_walk, reduction_pyramid, trace_mirror_rays
 from synthetic import corridor, pixel_rays
 from ssr_addon.params import ChainSettings
 
@@ -69,16 +70,20 @@ def test_hiz_sees_one_pixel_thin_geometry_a_coarse_march_steps_over(gpu_backend)
     assert pole_hits(coarse) < pole_hits(hiz)
 
 
-def test_hiz_pyramid_matches_numpy_min_pyramid(gpu_backend):
+@pytest.mark.parametrize("reduction", ["hiz_downsample", "color_downsample"])
+def test_pyramids_match_numpy_reductions(gpu_backend, reduction):
+    """The Hi-Z pyramid is the min of the texels each cell covers, the colour pyramid their
+    mean, level by level to 1x1, each level where its rectangle says in one atlas."""
     from ssr_addon.chain import build_pyramid
     from ssr_addon.gpu_backend import TexturePool, download, upload
-    depth = np.random.default_rng(1).uniform(1, 50, (37, 61)).astype(np.float32)  # odd sizes on purpose
-    atlas, rects = build_pyramid(upload(depth), "hiz_downsample", TexturePool(), "hiz")
-    atlas_gl = download(atlas, 1)[::-1, :, 0]
-    expected = min_pyramid(depth[::-1])
+    channels = 1 if reduction == "hiz_downsample" else 4
+    image = np.random.default_rng(1).uniform(1, 50, (37, 61, channels)).astype(np.float32)  # odd sizes on purpose
+    atlas, rects = build_pyramid(upload(image), reduction, TexturePool(), "pyramid")
+    atlas_gl = download(atlas, channels)[::-1]
+    expected = reduction_pyramid(image[::-1], np.nanmin if channels == 1 else np.nanmean)
     assert len(rects) == len(expected)
     for (x, y, width, height), level in zip(rects, expected):
-        np.testing.assert_array_equal(atlas_gl[y:y + height, x:x + width], level)
+        np.testing.assert_allclose(atlas_gl[y:y + height, x:x + width], level, rtol=1e-6)
 
 
 def test_mirror_floor_hits_land_on_the_mirror_image(gpu_backend):

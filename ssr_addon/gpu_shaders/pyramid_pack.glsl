@@ -1,5 +1,6 @@
-/* Copy one pyramid level into its rectangle of the atlas, so a tracer can pick
- * any level from one sampler (Python-made textures have a single mip level).
+/* Copy a pyramid's level 0, its source, into its rectangle of the atlas, so a tracer can
+ * pick any level from one sampler (Python-made textures have a single mip level); the
+ * reduced levels draw themselves there (pyramid_downsample.glsl).
  *
  * Input: level_tx. Output: atlas_img, drawn with the viewport on the level's rectangle. */
 
