@@ -63,12 +63,15 @@ def upload(array):
     if array.ndim == 2:
         array = array[..., None]
     height, width, channels = array.shape
-    if channels == 3:
-        array = np.concatenate([array, np.ones((height, width, 1), np.float32)], axis=2)
+    if channels == 3:  # flipped and padded in one copy
+        pixels = np.empty((height, width, 4), np.float32)
+        pixels[..., :3] = array[::-1]
+        pixels[..., 3] = 1.0
         channels = 4
-    if channels not in _FORMATS:
+    elif channels in _FORMATS:
+        pixels = np.ascontiguousarray(array[::-1])
+    else:
         raise ValueError(f"cannot upload an array with {channels} channels")
-    pixels = np.ascontiguousarray(array[::-1])
     buffer = gpu.types.Buffer("FLOAT", pixels.size, pixels.ravel())
     return gpu.types.GPUTexture((width, height), format=_FORMATS[channels], data=buffer)
 
