@@ -36,7 +36,7 @@ PARAMS_FIELDS = (
     ("float", "trace_stride", "shortest linear-march step, pixels"),
     ("int", "trace_steps", "most linear-march depth tests"),
     ("int", "refine_steps", "binary-search steps after a linear-march hit"),
-    ("float", "border_fade", "fade hits this close to the screen border (fraction of the screen)"),
+    ("float", "border_fade", "fade hits this close to where their ray leaves the screen (fraction of it)"),
     ("float", "camera_facing_fade", "fade rays pointing back at the camera"),
     ("float", "max_roughness", "rougher pixels keep the probe/world reflection"),
     ("int", "use_importance_sampling", "GGX lobe samples (1) or mirror directions (0)"),

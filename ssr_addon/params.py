@@ -95,7 +95,8 @@ class ChainSettings:
     max_roughness: float = _setting(
         0.5, "Surfaces rougher than this keep their probe/world reflection", 0.0, 1.0, group="fading")
     border_fade: float = _setting(
-        0.08, "Fade hits within this fraction of the screen from its border", 0.0, 0.5, group="fading")
+        0.08, "Fade hits within this fraction of the screen from where their ray leaves it", 0.0, 0.5,
+        group="fading")
     camera_facing_fade: float = _setting(
         0.5, "Fade rays that point back towards the camera (0: never fade)", 0.0, 1.0, group="fading")
     # Lamps: SSR replaces reflected light, never a highlight of a lamp it cannot see on screen,

@@ -150,8 +150,9 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
     render: a second render, lamps only (EEVEE) or lamps hidden (Cycles), exact;
     unshadowed: a second render of EEVEE's lamps only without shadows, times the Shadow pass;
     off: no split (specular_direct is zero), as when nothing replaces the indirect specular.
-    TIMER (a StageTimer) gets the engine's render as "render" and a second render of
-    the split, the add-on's own cost, as "lamp_split" (the chain times the analytic split).
+    TIMER (a StageTimer) gets the engine's render as "render" and the split, the add-on's
+    own cost, as "lamp_split": a second render, or reading the lights for the analytic
+    split, whose pass the chain times.
     The scene, its view layer and its materials are exactly as before on return.
     """
     camera = require_camera(scene)
@@ -170,11 +171,12 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
         lap(timer, "render")
         width, height = scene.render.resolution_x, scene.render.resolution_y
         view, projection = camera_matrices(scene, width, height)
-        surface = surface_layers(layers)
         if engine == "eevee":
             specular_light = _layer(layers, "Glossy Direct")
             lamp_light = eevee_lamp_light(scene, layers, lamp_split, view, projection,
                                           lambda shadows: _lamp_specular(scene, folder, timer, shadows))
+            if isinstance(lamp_light, AnalyticLampLight):
+                lap(timer, "lamp_split")  # reading the scene's lights; the chain adds its pass
         else:
             # Cycles' Glossy Direct holds what one glossy bounce reaches from an emitter: lamps,
             # the world and emissive surfaces; Glossy Indirect what other surfaces reflect.
@@ -186,7 +188,7 @@ def render_passes(scene, engine="eevee", samples=None, resolution=None, eevee_ra
             emitter_specular = _emitter_specular(scene, folder, lamps, timer) if lamps else glossy_direct
             specular_light = glossy_direct + glossy_indirect
             lamp_light = np.maximum(glossy_direct - emitter_specular, 0.0)
-    return frame_passes(layers, surface, specular_light, lamp_light, view, projection,
+    return frame_passes(layers, surface_layers(layers), specular_light, lamp_light, view, projection,
                         (camera.data.clip_start, camera.data.clip_end), engine, samples, material_warnings)
 
 

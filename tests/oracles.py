@@ -123,6 +123,18 @@ def march_pixel_walk(ray, scene_depth, settings, clip_end):
     return -1.0
 
 
+def distance_on_screen(uv, direction):
+    """How far (in uv) the screen line from UV along DIRECTION runs before it leaves the unit
+    square: found by bisection on "still inside", not by the shader's per-axis division."""
+    step = np.asarray(direction, np.float64) / np.linalg.norm(direction)
+    inside, outside = 0.0, 2.0  # the screen's diagonal is under 2
+    for _ in range(60):
+        middle = (inside + outside) / 2
+        point = np.asarray(uv, np.float64) + middle * step
+        inside, outside = (middle, outside) if np.all((point >= 0) & (point <= 1)) else (inside, middle)
+    return inside
+
+
 def trace_mirror_rays(depth, normal_view, roughness, view_to_clip, clip_start, clip_end, settings, march):
     """trace.glsl with mirror rays at full resolution: (H, W, 4) = (hit uv, distance, confidence).
 
@@ -157,8 +169,8 @@ def trace_mirror_rays(depth, normal_view, roughness, view_to_clip, clip_start, c
             hit_texel = np.clip(np.floor(hit_px).astype(np.int32), 0, np.array([width, height]) - 1)
             if np.dot(normal_view[::-1][hit_texel[1], hit_texel[0]], direction) > 0:
                 continue
-            edge = min(hit_uv[0], 1 - hit_uv[0], hit_uv[1], 1 - hit_uv[1])
-            fade = np.clip(edge / settings.border_fade, 0, 1) if settings.border_fade > 0 else 1.0
+            on_screen_for = distance_on_screen(hit_uv, ray.delta / viewport)
+            fade = np.clip(on_screen_for / settings.border_fade, 0, 1) if settings.border_fade > 0 else 1.0
             if settings.camera_facing_fade > 0:
                 fade *= np.clip((1 - np.dot(direction, -incident)) / settings.camera_facing_fade, 0, 1)
             result[row, col] = (hit_uv[0], hit_uv[1], np.linalg.norm(ray.view_position(t) - origin), fade)

@@ -4,7 +4,7 @@ import pytest
 
 from gpu_harness import CLIP_END, CLIP_START, run_synthetic_chain
 from oracles import march_linear, march_pixel_walk, reduction_pyramid, trace_mirror_rays
-from synthetic import corridor, pixel_rays
+from synthetic import corridor, perspective, pixel_rays, raycast
 from ssr_addon.params import ChainSettings
 
 # Mirror rays, one per pixel, no temporal accumulation: the tracer alone decides the hits.
@@ -112,3 +112,25 @@ def test_background_and_rough_pixels_trace_nothing(gpu_backend):
     assert not (hits[..., 3] > 0)[:, : depth.shape[1] // 2].any()
     assert not (arrays["ray_hit"][..., 2] > 0)[depth >= CLIP_END].any(), "no ray from the sky"
     assert (hits[..., 3] > 0)[:, depth.shape[1] // 2:].any()
+
+
+def test_edge_fading_dims_hits_only_where_their_rays_leave_the_screen(gpu_backend):
+    """Edge fading ("Edge Fading" slide) hides the line where rays leave the screen. Over a
+    mirror floor seen level, every reflected ray runs straight up the screen: hits near the
+    top edge, where the rays leave, fade out; hits near the side edges keep their full
+    weight, as their rays leave through the top (a fade by the distance to any edge dimmed
+    the outer 8 % of the reflection on both sides)."""
+    width, height = 80, 48
+    projection = perspective(width, height)
+    far_wall = [((-100.0, -1.0, -61.0), (100.0, 100.0, -60.0))]  # far enough for rays to climb near the top
+    depth, normal = raycast(width, height, projection, far_wall, floor_y=-1.0)
+    settings = ChainSettings(border_fade=0.08, camera_facing_fade=0.0, trace_steps=128, trace_stride=1.0,
+                             thickness=2.0, max_distance=200.0, **MIRROR)
+    hits, _ = traced(settings, (depth, normal, projection))
+    hit = (hits[..., 3] > 0) & (normal[..., 1] > 0.5)  # the floor's reflections
+    u, v, confidence = hits[..., 0], hits[..., 1], hits[..., 3]
+    near_side = hit & ((u < 0.08) | (u > 0.92)) & (v < 0.9)
+    near_top = hit & (v > 0.94)
+    assert near_side.sum() >= 20 and near_top.sum() >= 20
+    assert confidence[near_side].min() > 0.99
+    np.testing.assert_allclose(confidence[near_top], (1 - v[near_top]) / 0.08, atol=0.02)

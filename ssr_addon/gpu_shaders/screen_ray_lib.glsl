@@ -71,11 +71,23 @@ float scene_depth_at(ScreenRay ray, float t)
   return texelFetch(depth_tx, texel_at(ray_position_px(ray, t)), 0).r;
 }
 
-/* Screen-edge fade ("Edge Fading" slide): 0 at the border, 1 past border_fade. */
-float border_fade(vec2 uv)
+/* Screen-edge fade ("Edge Fading" slide): a hit at UV of a ray running along DIRECTION_PX
+ * on screen weighs 0 where the ray leaves the screen and 1 from border_fade (a share of the
+ * screen) before that, measured along the ray. Rays that run on past a hit leave the screen
+ * there, so the reflection would end in a hard line; a ray running along an edge leaves
+ * through another, and its neighbours' rays do too: its hits near that edge are not cut off. */
+float border_fade(vec2 uv, vec2 direction_px)
 {
-  float distance_to_edge = min(min(uv.x, 1.0 - uv.x), min(uv.y, 1.0 - uv.y));
-  return params.border_fade > 0.0 ? clamp(distance_to_edge / params.border_fade, 0.0, 1.0) : 1.0;
+  if (params.border_fade <= 0.0) {
+    return 1.0;
+  }
+  vec2 direction = direction_px * params.pixel_size;
+  float direction_length = length(direction);
+  vec2 room = mix(uv, 1.0 - uv, step(0.0, direction)); /* to the edge it heads for, per axis */
+  /* A ray that does not move on screen: the nearest edge. */
+  vec2 distance_to_exit = direction_length > 0.0 ? room * direction_length / max(abs(direction), vec2(1e-30)) :
+                                                   min(uv, 1.0 - uv);
+  return clamp(min(distance_to_exit.x, distance_to_exit.y) / params.border_fade, 0.0, 1.0);
 }
 
 /* Rays heading back to the camera reach what the depth buffer cannot show. */

@@ -124,5 +124,5 @@ void main()
   }
   ray_dir_img.w = distance(origin, ray_view_position(ray, t));
   ray_hit_img.xy = hit_uv;
-  ray_hit_img.w = border_fade(hit_uv) * camera_facing_fade(incident, direction);
+  ray_hit_img.w = border_fade(hit_uv, ray.delta_px) * camera_facing_fade(incident, direction);
 }
