@@ -3,9 +3,9 @@
  * average, for the colour pyramid of the cone-filtered resolve.
  *
  * Input:  source_tx, the previous level at source_offset, source_size texels.
- * Outputs: atlas_img (the pyramid's atlas, which the tracer reads) and level_img (a
- *          scratch texture the next level reads: a texture may not be read while drawn
- *          into), both drawn with the viewport on the level's rectangle at level_offset.
+ * Output: level_img, drawn with the viewport on the level's rectangle at level_offset
+ *         (chain.build_pyramid: levels take turns between two textures, as a texture
+ *         may not be read while drawn into; Python-made textures have one mip level).
  * Levels are ceil(previous / 2) in size, so texel c always covers source
  * texels 2c and 2c+1 (the last one alone on an odd edge) and a cell of level
  * L is exactly the 2^L x 2^L block of full-resolution pixels the tracer assumes. */
@@ -22,7 +22,7 @@ void main()
       nearest = min(nearest, texelFetch(source_tx, source_offset + ivec2(x, y), 0).r);
     }
   }
-  vec4 reduced = vec4(nearest);
+  level_img = vec4(nearest);
 #else
   vec4 total = vec4(0.0);
   for (int y = first.y; y <= last.y; y++) {
@@ -30,8 +30,6 @@ void main()
       total += texelFetch(source_tx, source_offset + ivec2(x, y), 0);
     }
   }
-  vec4 reduced = total / float((last.x - first.x + 1) * (last.y - first.y + 1));
+  level_img = total / float((last.x - first.x + 1) * (last.y - first.y + 1));
 #endif
-  atlas_img = reduced;
-  level_img = reduced;
 }
