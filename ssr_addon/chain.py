@@ -149,54 +149,53 @@ def pyramid_levels(size):
     return levels
 
 
-@dataclass
-class Pyramid:
-    """A 2x2 reduction pyramid (build_pyramid). Level 0 is the source texture itself; level
-    k >= 1 lies at rects[k] of odd_tx (odd k) or even_tx (even k): each level is drawn reading
-    the one before, and a texture may not be read while drawn into. Shaders read a level with
-    pyramid_fetch / pyramid_sample (common_lib.glsl)."""
-    source_tx: object
-    even_tx: object
-    odd_tx: object
-    rects: list  # (x, y, width, height) of every level in its texture
-
-    @classmethod
-    def single_level(cls, source_tx):
-        """The source alone: a pyramid that is never climbed."""
-        return cls(source_tx, source_tx, source_tx, [(0, 0, source_tx.width, source_tx.height)])
-
-    def samplers(self, name):
-        """Its reduced levels' textures as a pass declares them: NAME_even_tx, NAME_odd_tx."""
-        return ((f"{name}_even_tx", self.even_tx), (f"{name}_odd_tx", self.odd_tx))
+def column_layout(levels):
+    """Where each reduced level (levels 1..) lies in the texture of its parity, which stacks
+    them at x = 0: ({1: odd column size, 0: even column size}, per-level (parity, y))."""
+    heights, places = {1: 0, 0: 0}, []
+    for index, (_, height) in enumerate(levels[1:], 1):
+        places.append((index % 2, heights[index % 2]))
+        heights[index % 2] += height
+    widths = {1: levels[1][0] if len(levels) > 1 else 0, 0: levels[2][0] if len(levels) > 2 else 0}
+    return {parity: (widths[parity], heights[parity]) for parity in (1, 0)}, places
 
 
-def level_rects(levels):
-    """(size of the reduced levels' textures, every level's rectangle): level 0 is its source's
-    whole texture, the others are stacked in a column at the origin."""
-    rects, y = [(0, 0, *levels[0])], 0
-    for width, height in levels[1:]:
-        rects.append((0, y, width, height))
-        y += height
-    return ((levels[1][0], y) if len(levels) > 1 else None), rects
+def atlas_layout(levels):
+    """(atlas size, per-level rectangles): level 0 at the origin, the odd levels stacked in a
+    column to its right, the even ones in a column right of that: each column is one copy of
+    the texture its levels were drawn into (build_pyramid)."""
+    columns, places = column_layout(levels)
+    column_x = {1: levels[0][0], 0: levels[0][0] + columns[1][0]}
+    rects = [(0, 0, *levels[0])] + [(column_x[parity], y, *size) for (parity, y), size in zip(places, levels[1:])]
+    return (column_x[0] + columns[0][0], max(levels[0][1], columns[1][1], columns[0][1])), rects
 
 
 def build_pyramid(source_tx, reduction, pool, role, level_count=None):
-    """Reduce SOURCE level by level ('hiz_downsample': min, 'color_downsample': mean): one
-    draw a level, into two textures taking turns; returns the Pyramid."""
+    """Reduce SOURCE level by level ('hiz_downsample': min, 'color_downsample': mean) and pack
+    the levels into one atlas texture; returns (atlas, rectangles).
+
+    Each level is one draw, into the column texture of its parity, reading the level before
+    from the other one (a texture may not be read while drawn into); then three copies make
+    the atlas: the source as level 0, and each column."""
     levels = pyramid_levels((source_tx.width, source_tx.height))[:level_count]
-    if len(levels) == 1:
-        return Pyramid.single_level(source_tx)
-    column, rects = level_rects(levels)
+    atlas_size, rects = atlas_layout(levels)
     channels = 1 if reduction == "hiz_downsample" else 4
-    even_tx, odd_tx = (pool.get(f"{role}_{parity}", column, channels) for parity in ("even", "odd"))
-    source, source_rect = source_tx, rects[0]
-    for index, rect in enumerate(rects[1:], 1):
-        target = odd_tx if index % 2 else even_tx
-        get_pass(reduction).draw([target], samplers=(("source_tx", source),),
+    atlas = pool.get(f"{role}_atlas", atlas_size, channels)
+    columns, places = column_layout(levels)
+    column_tx = {parity: pool.get(f"{role}_column{parity}", size, channels)
+                 for parity, size in columns.items() if size[1] > 0}
+    source, source_rect = source_tx, (0, 0, *levels[0])
+    for (parity, y), size in zip(places, levels[1:]):
+        get_pass(reduction).draw([column_tx[parity]], samplers=(("source_tx", source),),
                                  constants=(("source_offset", source_rect[:2]), ("source_size", source_rect[2:]),
-                                            ("level_offset", rect[:2])), region=rect)
-        source, source_rect = target, rect
-    return Pyramid(source_tx, even_tx, odd_tx, rects)
+                                            ("level_offset", (0, y))), region=(0, y, *size))
+        source, source_rect = column_tx[parity], (0, y, *size)
+    packer = get_pass("pyramid_pack")
+    copies = [(source_tx, rects[0])] + [(texture, (rects[1 if parity else 2][0], 0, *columns[parity]))
+                                        for parity, texture in column_tx.items()]
+    for texture, rect in copies:
+        packer.draw([atlas], samplers=(("level_tx", texture),), constants=(("level_offset", rect[:2]),), region=rect)
+    return atlas, rects
 
 
 @dataclass
@@ -208,8 +207,10 @@ class FrameContext:
     timer: object                # StageTimer or None
     size: tuple                  # (width, height) of the frame
     trace_size: tuple            # of the ray textures (half resolution: half of it)
-    hiz: Pyramid                 # min depth; level 0 is inputs.depth_tx
-    color: Pyramid               # mean colour; level 0 is inputs.radiance_tx
+    hiz_tx: object
+    hiz_rects: list              # each Hi-Z level's place in hiz_tx
+    color_tx: object
+    color_rects: list
     world_to_clip: np.ndarray
 
     @property
@@ -223,7 +224,7 @@ class FrameContext:
 def chain_params(frame, iteration, history_mode, previous_world_to_clip):
     """The uniform block of one iteration of FRAME, every field by name (gpu_params.PARAMS_FIELDS)."""
     inputs, settings, size, trace_size = frame.inputs, frame.settings, frame.size, frame.trace_size
-    hiz_rects, color_rects = frame.hiz.rects, frame.color.rects
+    hiz_rects, color_rects = frame.hiz_rects, frame.color_rects
     view = np.asarray(inputs.view_matrix, np.float64)
     projection = np.asarray(inputs.projection_matrix, np.float64)
     history_frames = 1.0 / (1.0 - settings.temporal_weight)
@@ -272,14 +273,15 @@ class FrameRun:
         scale = 2 if settings.half_resolution else 1
         trace_size = (math.ceil(size[0] / scale), math.ceil(size[1] / scale))
         pool = state.pool
-        hiz = build_pyramid(inputs.depth_tx, "hiz_downsample", pool, "hiz") if settings.use_hiz \
-            else Pyramid.single_level(inputs.depth_tx)
-        lap(timer, "hiz", hiz.odd_tx)
-        color = build_pyramid(inputs.radiance_tx, "color_downsample", pool, "color",
-                              None if settings.use_cone_filter else 1)
-        lap(timer, "color_pyramid", color.odd_tx)
+        hiz_tx, hiz_rects = build_pyramid(inputs.depth_tx, "hiz_downsample", pool, "hiz") \
+            if settings.use_hiz else (inputs.depth_tx, [(0, 0, *size)])
+        lap(timer, "hiz", hiz_tx)
+        color_tx, color_rects = build_pyramid(inputs.radiance_tx, "color_downsample", pool, "color",
+                                              None if settings.use_cone_filter else 1)
+        lap(timer, "color_pyramid", color_tx)
         world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
-        self.frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz, color, world_to_clip)
+        self.frame = FrameContext(inputs, settings, state, timer, size, trace_size, hiz_tx, hiz_rects,
+                                  color_tx, color_rects, world_to_clip)
         if not state.sequence.has_history:  # the last frame's reflection is no yardstick for this one
             state.convergence.forget()
         self.iterations = 0
@@ -369,7 +371,7 @@ def _run_iteration(frame, first):
     get_pass("trace").draw(
         [ray_hit_tx, ray_dir_tx, ray_stats_tx],
         samplers=(("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
-                  ("roughness_tx", inputs.roughness_tx), *frame.hiz.samplers("hiz")),
+                  ("roughness_tx", inputs.roughness_tx), ("hiz_tx", frame.hiz_tx)),
         uniform_blocks=blocks)
     lap(timer, "trace", ray_hit_tx)
 
@@ -384,8 +386,7 @@ def _run_iteration(frame, first):
         [resolved_tx, reflection_hit_tx],
         samplers=(("ray_hit_tx", ray_hit_tx), ("ray_dir_tx", ray_dir_tx), ("depth_tx", inputs.depth_tx),
                   ("normal_tx", inputs.normal_tx), ("roughness_tx", inputs.roughness_tx),
-                  ("color_tx", inputs.radiance_tx), *frame.color.samplers("color"),
-                  ("history_count_tx", history_count_in_tx)),
+                  ("color_tx", frame.color_tx), ("history_count_tx", history_count_in_tx)),
         uniform_blocks=blocks)
     if at_half:
         half_tx, half_hit_tx = resolved_tx, reflection_hit_tx

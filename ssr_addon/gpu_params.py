@@ -49,8 +49,8 @@ PARAMS_FIELDS = (
     ("int", "reproject_hit", "temporal filter reprojects the hit point (1) or the surface (0)"),
     ("int", "history_mode", "0 no history, 1 an animation's (clamped), 2 a still's own iterations (unclamped)"),
     ("float", "history_frames", "most frames a moving pixel averages"),
-    (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid level in its texture: x, y, width, height"),
-    (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid level, likewise"),
+    (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
+    (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
 )
 
 # Lights of lamp_split=analytic (analytic_lamps.py, lamp_split.glsl); it refuses a scene

@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from .chain import FrameContext, Pyramid, build_pyramid, chain_params
+from .chain import FrameContext, build_pyramid, chain_params
 from .frame_sequence import Iteration
 from .gpu_backend import TexturePool, download, empty_texture
 from .shaders import get_pass
@@ -95,19 +95,19 @@ def _image_pixel(gl_pixel, height):
     return (int(gl_pixel[0]), height - 1 - int(gl_pixel[1]))
 
 
-def _run_walk(inputs, settings, hiz, pixel_gl, length):
-    """Draw the hiz_walk pass (HIZ: the min-depth Pyramid) into LENGTH x 1 targets; returns
-    (walk, span, ray) arrays (LENGTH, 4)."""
+def _run_walk(inputs, settings, hiz_tx, hiz_rects, pixel_gl, length):
+    """Draw the hiz_walk pass into LENGTH x 1 targets; returns (walk, span, ray) arrays (LENGTH, 4)."""
     size = inputs.size
     frame = FrameContext(inputs=inputs, settings=settings, state=None, timer=None, size=size, trace_size=size,
-                         hiz=hiz, color=Pyramid.single_level(inputs.depth_tx),  # the walk reads no colour
+                         hiz_tx=hiz_tx, hiz_rects=hiz_rects, color_tx=None,
+                         color_rects=[(0, 0, *size)],  # no colour pyramid: the walk reads none
                          world_to_clip=None)
     world_to_clip = np.asarray(inputs.projection_matrix, np.float64) @ np.asarray(inputs.view_matrix, np.float64)
     iteration = Iteration(sample_index=0, quad_phase=0, noise_seed=0, read_slot=None, write_slot=0)
     params = chain_params(frame, iteration, 0, world_to_clip)
     targets = [empty_texture((length, 1)) for _ in range(3)]
     get_pass("hiz_walk").draw(targets, samplers=(("depth_tx", inputs.depth_tx), ("normal_tx", inputs.normal_tx),
-                                                 *hiz.samplers("hiz")),
+                                                 ("hiz_tx", hiz_tx)),
                               uniform_blocks=(("params", params),), constants=(("walk_pixel", pixel_gl),))
     return [download(target)[0] for target in targets]
 
@@ -120,7 +120,7 @@ def hiz_walk(inputs, settings, pixel, pool=None, pyramid=None):
     whatever use_hiz says). The ray is trace.glsl's with mirror directions: whatever the
     pixel's roughness, and whether or not the ray budget would make it expensive.
     The min-depth pyramid is built as the chain builds it (chain.build_pyramid), in POOL's
-    textures (a fresh pool by default), unless PYRAMID gives one built so.
+    textures (a fresh pool by default), unless PYRAMID gives one built so: (atlas, rectangles).
     Returns a HiZWalk.
     """
     width, height = inputs.size
@@ -129,10 +129,11 @@ def hiz_walk(inputs, settings, pixel, pool=None, pyramid=None):
         raise ValueError(f"pixel {pixel} is off the {width}x{height} frame")
     pixel_gl = (column, height - 1 - row)
     settings = replace(settings, use_hiz=True)
-    hiz = pyramid or build_pyramid(inputs.depth_tx, "hiz_downsample", pool or TexturePool(), "hiz_walk")
+    hiz_tx, hiz_rects = pyramid or build_pyramid(inputs.depth_tx, "hiz_downsample", pool or TexturePool(),
+                                                 "hiz_walk")
 
     cap = int(settings.hiz_max_iterations)
-    walk, span, ray = _run_walk(inputs, settings, hiz, pixel_gl, cap + 1)
+    walk, span, ray = _run_walk(inputs, settings, hiz_tx, hiz_rects, pixel_gl, cap + 1)
     end = next(index for index in range(cap + 1) if walk[index, 0] < 0)
     end_walk, end_span, end_ray = walk[end], span[end], ray[end]
     visits = [Visit(iteration=index + 1, level=int(walk[index, 0]), cell=(int(walk[index, 1]), int(walk[index, 2])),
@@ -149,8 +150,8 @@ def hiz_walk(inputs, settings, pixel, pool=None, pyramid=None):
     if status != "no ray":
         longest = width + height + 2  # a line crosses at most this many pixels
         linear_settings = replace(settings, hiz_max_iterations=longest)
-        linear_walk, linear_span, _ = _run_walk(inputs, linear_settings, Pyramid.single_level(inputs.depth_tx),
-                                                pixel_gl, longest + 1)
+        linear_walk, linear_span, _ = _run_walk(inputs, linear_settings, hiz_tx, hiz_rects[:1], pixel_gl,
+                                                longest + 1)
         linear_end = next(index for index in range(longest + 1) if linear_walk[index, 0] < 0)
         pixel_tests = int(linear_span[linear_end, 2])
         if int(linear_walk[linear_end, 3]) == _END_HIT:

@@ -1,5 +1,5 @@
 /* Helpers shared by the passes: view-space reconstruction from the depth pass,
- * hashing, and pyramid access.
+ * hashing, and pyramid atlas access.
  * The depth pass holds distance along the view axis (positive), so a view-space
  * position is the point on the pixel's camera ray at z = -depth; this works for
  * perspective and orthographic cameras alike. */
@@ -87,27 +87,16 @@ vec2 pixel_noise(ivec2 pixel, uint seed_offset)
   return vec2(seed & 0xffffu, seed >> 16u) / 65536.0;
 }
 
-/* One texel of pyramid level LEVEL at LEVEL_RECT (chain.Pyramid; rectangles from params):
- * level 0 is the SOURCE texture, the others alternate between ODD_LEVELS and EVEN_LEVELS. */
-vec4 pyramid_fetch(sampler2D source, sampler2D even_levels, sampler2D odd_levels, int level, vec4 level_rect,
-                   ivec2 texel)
+/* One texel of a pyramid level packed in an atlas (level rectangles from params). */
+vec4 atlas_fetch(sampler2D atlas, vec4 level_rect, ivec2 texel)
 {
-  ivec2 at = ivec2(level_rect.xy) + clamp(texel, ivec2(0), ivec2(level_rect.zw) - 1);
-  if (level == 0) {
-    return texelFetch(source, at, 0);
-  }
-  return (level % 2 == 1) ? texelFetch(odd_levels, at, 0) : texelFetch(even_levels, at, 0);
+  ivec2 clamped = clamp(texel, ivec2(0), ivec2(level_rect.zw) - 1);
+  return texelFetch(atlas, ivec2(level_rect.xy) + clamped, 0);
 }
 
-/* Bilinear sample of one pyramid level, as pyramid_fetch finds it, never bleeding into the
- * levels beside it. */
-vec4 pyramid_sample(sampler2D source, sampler2D even_levels, sampler2D odd_levels, int level, vec4 level_rect,
-                    vec2 uv)
+/* Bilinear sample of one level of an atlas, never bleeding into its neighbours. */
+vec4 atlas_sample(sampler2D atlas, vec4 level_rect, vec2 uv)
 {
-  vec2 position = level_rect.xy + clamp(uv * level_rect.zw, vec2(0.5), level_rect.zw - 0.5);
-  if (level == 0) {
-    return textureLod(source, position / vec2(textureSize(source, 0)), 0.0);
-  }
-  return (level % 2 == 1) ? textureLod(odd_levels, position / vec2(textureSize(odd_levels, 0)), 0.0) :
-                            textureLod(even_levels, position / vec2(textureSize(even_levels, 0)), 0.0);
+  vec2 position = clamp(uv * level_rect.zw, vec2(0.5), level_rect.zw - 0.5);
+  return textureLod(atlas, (level_rect.xy + position) / vec2(textureSize(atlas, 0)), 0.0);
 }

@@ -41,7 +41,7 @@ float cell_exit(ScreenRay ray, vec2 cell, float size)
 
 float hiz_min_depth(int level, vec2 cell)
 {
-  return pyramid_fetch(depth_tx, hiz_even_tx, hiz_odd_tx, level, params.hiz_level[level], ivec2(cell)).r;
+  return atlas_fetch(hiz_tx, params.hiz_level[level], ivec2(cell)).r;
 }
 
 /* Returns the hit t, or -1 for a miss; `iterations` counts cell visits,

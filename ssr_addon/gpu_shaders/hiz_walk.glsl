@@ -4,7 +4,7 @@
  * stop at the hit. The march is hiz_march_lib.glsl's own march_hiz, the ray
  * trace.glsl's mirror ray (surface_ray_lib.glsl); hiz_walk_lib.glsl records it.
  *
- * Inputs:  depth_tx (view depth), normal_tx (world normal), hiz_even_tx and hiz_odd_tx (min-depth pyramid),
+ * Inputs:  depth_tx (view depth), normal_tx (world normal), hiz_tx (min-depth atlas),
  *          walk_pixel (push constant: the ray's pixel, x right, y up).
  * Drawn into an N x 1 target: fragment x = i replays the march and keeps visit i,
  *   walk_img      = (level, cell x, cell y, HIZ_VISIT_* outcome)

@@ -4,8 +4,8 @@
  *
  * Input:  source_tx, the previous level at source_offset, source_size texels.
  * Output: level_img, drawn with the viewport on the level's rectangle at level_offset
- *         (chain.build_pyramid: levels take turns between two textures, as a texture
- *         may not be read while drawn into; Python-made textures have one mip level).
+ *         in the column texture of its parity (chain.build_pyramid: odd and even levels
+ *         take turns, as a texture may not be read while drawn into).
  * Levels are ceil(previous / 2) in size, so texel c always covers source
  * texels 2c and 2c+1 (the last one alone on an odd edge) and a cell of level
  * L is exactly the 2^L x 2^L block of full-resolution pixels the tracer assumes. */

@@ -5,8 +5,7 @@
  * scales that up.
  *
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
- *          color_tx (the lit scene), color_even_tx and color_odd_tx (its
- *          colour pyramid's reduced levels), history_count_tx
+ *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_count_tx
  *          (iterations the temporal history holds, history_lib.glsl).
  * Outputs: reflection_img     = (reflected radiance * confidence, confidence),
  *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
@@ -48,8 +47,8 @@ vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
   }
   int lower = int(floor(level));
   int upper = min(lower + 1, params.color_levels - 1);
-  vec3 a = pyramid_sample(color_tx, color_even_tx, color_odd_tx, lower, params.color_level[lower], hit_uv).rgb;
-  vec3 b = pyramid_sample(color_tx, color_even_tx, color_odd_tx, upper, params.color_level[upper], hit_uv).rgb;
+  vec3 a = atlas_sample(color_tx, params.color_level[lower], hit_uv).rgb;
+  vec3 b = atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb;
   return mix(a, b, level - float(lower));
 }
 

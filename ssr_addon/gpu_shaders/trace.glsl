@@ -1,8 +1,7 @@
 /* Ray generation and tracing, one ray per traced texel ("SSR in Frostbite":
  * rays by roughness class, importance-sampled, traced at half resolution).
  *
- * Inputs:  depth_tx (view depth), normal_tx (world normal), roughness_tx, hiz_even_tx and hiz_odd_tx
- *          (the min-depth pyramid's reduced levels; depth_tx is its level 0).
+ * Inputs:  depth_tx (view depth), normal_tx (world normal), roughness_tx, hiz_tx (min-depth atlas).
  * Outputs: ray_hit_img   = (hit uv, pdf of the ray direction, confidence); pdf 0: no ray traced,
  *                          confidence 0: traced but no trustworthy hit.
  *          ray_dir_img   = (view-space ray direction, hit distance).
