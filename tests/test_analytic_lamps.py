@@ -213,7 +213,8 @@ def test_the_chain_splits_the_lamps_off_on_the_gpu(gpu_backend):
     np.testing.assert_allclose(images["final"], final, atol=1e-6)
 
     channels = pass_channels(images)
-    direct, indirect = (np.stack([channels[f"Specular {part}.{c}"] for c in "RGB"], -1) for part in ("Direct", "Indirect"))
+    direct, indirect = (np.stack([channels[f"Specular {part}.{c}"] for c in "RGB"], -1)
+                        for part in ("Direct", "Indirect"))
     assert direct.max() > 0.1, "the lamps must light the floor"
     np.testing.assert_allclose(direct, passes.specular_direct, atol=1e-6)
     np.testing.assert_allclose(direct + indirect, np.maximum(passes.specular_light, direct), rtol=1e-5, atol=1e-6)

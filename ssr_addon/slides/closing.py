@@ -74,7 +74,7 @@ def limits(context):
         "panel, so the floor in front of it cannot reflect that part: SSR leaves it to the world "
         "reflection (FLIP against Cycles {hidden_flip}, {hidden_fallback_flip} with no SSR at all). "
         "Pillars leave the top of the frame, and so do the rays of the floor pixels that reflect their "
-        "tops: cut off, the reflection ends in a hard line; faded out over the last {border_fade} of the "
-        "screen before the rays leave it, it hands over smoothly to the world reflection. The seam's strength (the bench's "
-        "stability measure: 0 a smooth fade, 1 a one-pixel cut) is {cutoff_seam} cut off and "
+        "tops: cut off, the reflection ends in a hard line; faded out over the last {border_fade} of "
+        "the screen before the rays leave it, it hands over smoothly to the world reflection. The seam's "
+        "strength (the bench's stability measure: 0 a smooth fade, 1 a one-pixel cut) is {cutoff_seam} cut off and "
         "{fading_seam} faded.")
