@@ -206,17 +206,18 @@ def lamp_block(lamps, size, view_matrix, projection_matrix, background_depth):
         "lamp_count": len(lamps), "strata_per_side": STRATA_PER_SIDE, "lamps": records}).tobytes())
 
 
+@dataclass(frozen=True, eq=False)
 class AnalyticLampLight:
     """EEVEE's lamp highlights left to the GPU (lamp_split=analytic): LAMPS (scene_lamps) on
     a frame's surfaces, seen through VIEW_MATRIX and PROJECTION_MATRIX, shadowed by SHADOW
     (EEVEE's Shadow pass, (H, W)). The chain splits them off the specular light on the GPU,
     from the textures it uploads anyway (`split`); numpy callers get them read back
     (FramePasses.specular_direct)."""
-
-    def __init__(self, lamps, shadow, view_matrix, projection_matrix, background_depth):
-        self.lamps, self.shadow = tuple(lamps), shadow
-        self.view_matrix, self.projection_matrix = view_matrix, projection_matrix
-        self.background_depth = background_depth
+    lamps: list
+    shadow: np.ndarray
+    view_matrix: np.ndarray
+    projection_matrix: np.ndarray
+    background_depth: float
 
     def split(self, depth_tx, normal_tx, roughness_tx, specular_light_tx):
         """(specular direct, specular indirect) textures: the lamps' shadowed specular light and

@@ -54,19 +54,19 @@ class ChainInputs:
         depth_tx, normal_tx, roughness_tx = upload(passes.depth), upload(passes.normal), upload(passes.roughness)
         analytic = isinstance(passes.lamp_light, AnalyticLampLight)
         specular_tx = upload(passes.specular_light if analytic else passes.specular_indirect)
-        inputs = cls(
+        uploaded = dict(
             radiance_tx=combined_tx, depth_tx=depth_tx, normal_tx=normal_tx, roughness_tx=roughness_tx,
             combined_tx=combined_tx, specular_color_tx=upload(passes.specular_color),
-            specular_indirect_tx=specular_tx, f0_tx=upload(passes.f0), motion_tx=upload(passes.motion),
+            f0_tx=upload(passes.f0), motion_tx=upload(passes.motion),
             view_matrix=passes.view_matrix, projection_matrix=passes.projection_matrix,
             clip_start=passes.clip_start, clip_end=passes.clip_end,
             ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings))
         lap(timer, "upload")
-        if analytic:
-            inputs.specular_direct_tx, inputs.specular_indirect_tx = passes.lamp_light.split(
-                depth_tx, normal_tx, roughness_tx, specular_tx)
-            lap(timer, "lamp_split", inputs.specular_indirect_tx)
-        return inputs
+        if not analytic:
+            return cls(specular_indirect_tx=specular_tx, **uploaded)
+        direct_tx, indirect_tx = passes.lamp_light.split(depth_tx, normal_tx, roughness_tx, specular_tx)
+        lap(timer, "lamp_split", indirect_tx)
+        return cls(specular_indirect_tx=indirect_tx, specular_direct_tx=direct_tx, **uploaded)
 
 
 ROUGHNESS_BINS = 4096  # ray_budget's histogram: only the bin holding the threshold is sorted
@@ -149,25 +149,21 @@ def pyramid_levels(size):
     return levels
 
 
-def column_layout(levels):
-    """Where each reduced level (levels 1..) lies in the texture of its parity, which stacks
-    them at x = 0: ({1: odd column size, 0: even column size}, per-level (parity, y))."""
-    heights, places = {1: 0, 0: 0}, []
-    for index, (_, height) in enumerate(levels[1:], 1):
-        places.append((index % 2, heights[index % 2]))
-        heights[index % 2] += height
-    widths = {1: levels[1][0] if len(levels) > 1 else 0, 0: levels[2][0] if len(levels) > 2 else 0}
-    return {parity: (widths[parity], heights[parity]) for parity in (1, 0)}, places
-
-
 def atlas_layout(levels):
-    """(atlas size, per-level rectangles): level 0 at the origin, the odd levels stacked in a
-    column to its right, the even ones in a column right of that: each column is one copy of
-    the texture its levels were drawn into (build_pyramid)."""
-    columns, places = column_layout(levels)
+    """(atlas size, per-level rectangles, {parity: column size}): level 0 at the origin, the
+    odd levels stacked in a column to its right, the even ones in a column right of that.
+    Each column is one copy of the texture its levels are drawn into (build_pyramid), where
+    they lie at x = 0 and at the same y."""
+    heights, column_y = {1: 0, 0: 0}, []
+    for index, (_, height) in enumerate(levels[1:], 1):
+        column_y.append(heights[index % 2])
+        heights[index % 2] += height
+    columns = {1: (levels[1][0] if len(levels) > 1 else 0, heights[1]),
+               0: (levels[2][0] if len(levels) > 2 else 0, heights[0])}
     column_x = {1: levels[0][0], 0: levels[0][0] + columns[1][0]}
-    rects = [(0, 0, *levels[0])] + [(column_x[parity], y, *size) for (parity, y), size in zip(places, levels[1:])]
-    return (column_x[0] + columns[0][0], max(levels[0][1], columns[1][1], columns[0][1])), rects
+    rects = [(0, 0, *levels[0])] + [(column_x[index % 2], y, *size)
+                                    for index, (y, size) in enumerate(zip(column_y, levels[1:]), 1)]
+    return (column_x[0] + columns[0][0], max(levels[0][1], heights[1], heights[0])), rects, columns
 
 
 def build_pyramid(source_tx, reduction, pool, role, level_count=None):
@@ -178,20 +174,21 @@ def build_pyramid(source_tx, reduction, pool, role, level_count=None):
     from the other one (a texture may not be read while drawn into); then three copies make
     the atlas: the source as level 0, and each column."""
     levels = pyramid_levels((source_tx.width, source_tx.height))[:level_count]
-    atlas_size, rects = atlas_layout(levels)
+    atlas_size, rects, columns = atlas_layout(levels)
     channels = 1 if reduction == "hiz_downsample" else 4
     atlas = pool.get(f"{role}_atlas", atlas_size, channels)
-    columns, places = column_layout(levels)
     column_tx = {parity: pool.get(f"{role}_column{parity}", size, channels)
                  for parity, size in columns.items() if size[1] > 0}
-    source, source_rect = source_tx, (0, 0, *levels[0])
-    for (parity, y), size in zip(places, levels[1:]):
-        get_pass(reduction).draw([column_tx[parity]], samplers=(("source_tx", source),),
+    source, source_rect = source_tx, rects[0]
+    for index, (_, y, width, height) in enumerate(rects[1:], 1):
+        target, rect = column_tx[index % 2], (0, y, width, height)
+        get_pass(reduction).draw([target], samplers=(("source_tx", source),),
                                  constants=(("source_offset", source_rect[:2]), ("source_size", source_rect[2:]),
-                                            ("level_offset", (0, y))), region=(0, y, *size))
-        source, source_rect = column_tx[parity], (0, y, *size)
+                                            ("level_offset", rect[:2])), region=rect)
+        source, source_rect = target, rect
     packer = get_pass("pyramid_pack")
-    copies = [(source_tx, rects[0])] + [(texture, (rects[1 if parity else 2][0], 0, *columns[parity]))
+    first_level = {1: 1, 0: 2}  # of each column: its x in the atlas
+    copies = [(source_tx, rects[0])] + [(texture, (rects[first_level[parity]][0], 0, *columns[parity]))
                                         for parity, texture in column_tx.items()]
     for texture, rect in copies:
         packer.draw([atlas], samplers=(("level_tx", texture),), constants=(("level_offset", rect[:2]),), region=rect)

@@ -65,8 +65,7 @@ def upscaled_passes(scene, size=COPY_PASS_LARGE, factor=5):
 
     def upscaled(value):
         if isinstance(value, AnalyticLampLight):
-            return AnalyticLampLight(value.lamps, upscaled(value.shadow), value.view_matrix, value.projection_matrix,
-                                     value.background_depth)
+            return dataclasses.replace(value, shadow=upscaled(value.shadow))
         if isinstance(value, np.ndarray) and value.shape[:2] == small.depth.shape:
             return value.repeat(factor, axis=0).repeat(factor, axis=1)
         return value
