@@ -4,9 +4,12 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 OUT ?= out/demo
+# The page whose generated blocks the measuring targets rewrite.
+PAGE := docs/measurements.md
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test bench bench-stages bench-error crops bench-chain bench-memory bench-lamps bench-live slides dist validate clean
+.PHONY: demo test test-fast bench bench-stages bench-error crops bench-chain bench-memory bench-lamps bench-live slides \
+	dist validate clean
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -14,54 +17,60 @@ $(STAMP): pyproject.toml
 	$(PY) -m pip install -q -e '.[dev]'
 	touch $(STAMP)
 
-# Renders the bundled demo scene with SSR off and on, side by side in $(OUT).
+# Renders the bundled demo scene with SSR off and on into $(OUT)/none and $(OUT)/ssr, then
+# writes them side by side ($(OUT)/side_by_side.png) and prints its path.
 demo: $(STAMP)
 	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method none --out $(OUT)/none --overwrite
 	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method ssr --out $(OUT)/ssr --overwrite
+	$(PY) -m lab demo test_scenes/mirror_floor.py $(OUT)
 
 test: $(STAMP)
 	$(PY) -m pytest tests
 
+# The developer's loop: everything but the tests marked slow (EEVEE and Cycles renders, the CLI end to end).
+test-fast: $(STAMP)
+	$(PY) -m pytest tests -m "not slow"
+
 BENCH_SCENES := mirror_floor glossy_corridor rough_spheres curved_mirror rolling_ball wet_street
 
-# Regenerates docs/bench/ and the README's chart and tables: every scene, the
+# Regenerates docs/bench/ and the measurements page's chart and tables: every scene, the
 # engine alone, EEVEE's ray tracing and our presets, 8 frames each: errors on
 # frame 8, as the "Right before new" issue asks, and each stage's fastest of
 # 7 timed frames (about two hours on llvmpipe).
 bench: $(STAMP)
-	$(PY) -m ssr_addon bench --scenes $(BENCH_SCENES) --resolution 160x90 --frames 8 --out docs/bench --readme README.md \
+	$(PY) -m lab bench --scenes $(BENCH_SCENES) --resolution 160x90 --frames 8 --out docs/bench --page $(PAGE) \
 		--contenders none 'eevee-rt*' 'ssr draft' 'ssr balanced' 'ssr balanced lamp_split=unshadowed' \
 		'ssr balanced lamp_split=render' 'ssr high'
 
 # What each stage buys: the balanced preset with each stage switched off in turn.
 bench-stages: $(STAMP)
-	$(PY) -m ssr_addon bench --scenes mirror_floor wet_street --resolution 160x90 --out docs/bench-stages \
+	$(PY) -m lab bench --scenes mirror_floor wet_street --resolution 160x90 --out docs/bench-stages \
 		--contenders 'ssr balanced' 'ssr *=off' --no-stability
 
 # Where the balanced preset's error comes from: the chain, EEVEE's frame or screen space itself.
 bench-error: $(STAMP)
-	$(PY) benchmarks/error_budget.py --scenes $(BENCH_SCENES) --frame 8 --readme README.md
+	$(PY) -m lab error-budget --scenes $(BENCH_SCENES) --frame 8 --page $(PAGE)
 
 # Balanced stills at 1280x720 beside EEVEE's ray tracing, cropped (docs/crops/).
 crops: $(STAMP)
-	$(PY) benchmarks/still_crops.py --scenes mirror_floor wet_street --readme README.md
+	$(PY) -m lab crops --scenes mirror_floor wet_street --page $(PAGE)
 
 bench-chain: $(STAMP)
-	$(PY) benchmarks/chain_stages.py --readme README.md
+	$(PY) -m lab chain-stages --page $(PAGE)
 
 bench-memory: $(STAMP)
-	$(PY) benchmarks/batch_memory.py
+	$(PY) -m lab memory
 
 bench-lamps: $(STAMP)
-	$(PY) benchmarks/lamp_split.py --readme README.md
+	$(PY) -m lab lamps --page $(PAGE)
 
 # Latency of live SSR from a view change to the first image and to convergence (docs/live/).
 bench-live: $(STAMP)
-	$(PY) benchmarks/live_latency.py --readme README.md
+	$(PY) -m lab live --page $(PAGE)
 
 # The deck's comparisons, rendered and measured (docs/slides/index.html, its PNGs, slides.json).
 slides: $(STAMP)
-	$(PY) -m ssr_addon slides --out docs/slides
+	$(PY) -m lab slides --out docs/slides
 
 validate: $(STAMP)
 	$(PY) $(BLENDER_EXT) validate .

@@ -1,19 +1,10 @@
 """Stochastic SSR: Frostbite-style screen-space reflections for EEVEE and Cycles renders.
 
-As a Blender add-on: registers the scene settings, the operators and the UI
-(Node Wrangler style, in order; unregistered in reverse). Nothing here touches
-the GPU, so importing works headless and without a GPU context.
+As a Blender add-on it registers the user interface (ui: the scene settings, operators,
+panels, overlay and live mode). Importing touches no GPU, so it works headless.
+
+Layers, each importing only those below it (tests/test_layers.py holds them):
+core (the GPU chain, `gpu` only), blender (render passes, captures, user data),
+batch (command line, frame loop, outputs) and ui.
 """
-from . import operators, settings, ui
-
-modules = (settings, operators, ui)
-
-
-def register():
-    for module in modules:
-        module.register()
-
-
-def unregister():
-    for module in reversed(modules):
-        module.unregister()
+from .ui import register, unregister  # noqa: F401

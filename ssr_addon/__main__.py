@@ -1,3 +1,3 @@
-from .cli import main
+from .batch.cli import main
 
 main()

@@ -11,29 +11,42 @@ REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SCENES = os.path.join(REPO, "test_scenes")
 
 
+def pytest_collection_modifyitems(items):
+    """Mark every test that uses the GPU backend `gpu`."""
+    for item in items:
+        if "gpu_backend" in getattr(item, "fixturenames", ()):
+            item.add_marker(pytest.mark.gpu)
+
+
 @pytest.fixture(scope="session")
 def gpu_backend():
-    from ssr_addon.gpu_backend import ensure_backend
+    from ssr_addon.blender.gpu_context import ensure_backend
     ensure_backend()
 
 
-def run_cli(*args, check=True):
-    """Run `python -m ssr_addon ARGS` in a fresh process (scene loading replaces the open file)."""
-    result = subprocess.run([sys.executable, "-m", "ssr_addon", *map(str, args)], cwd=REPO,
+def run_cli(*args, check=True, package="ssr_addon"):
+    """Run `python -m ssr_addon ARGS` (or PACKAGE: the lab's) in a fresh process (scene loading
+    replaces the open file)."""
+    result = subprocess.run([sys.executable, "-m", package, *map(str, args)], cwd=REPO,
                             capture_output=True, text=True, timeout=600)
     if check and result.returncode != 0:
         raise AssertionError(f"CLI failed ({result.returncode}): {result.stderr[-2000:]}")
     return result
 
 
+def run_lab(*args, check=True):
+    """Run `python -m lab ARGS` in a fresh process."""
+    return run_cli(*args, check=check, package="lab")
+
+
 def read_exr(path):
     """{channel name: (H, W) float32} of a single-part EXR (the bench's reader, shared)."""
-    from ssr_addon.bench import read_channels
+    from lab.bench import read_channels
     return read_channels(str(path))
 
 
 def rgb(channels, layer=None):
-    from ssr_addon.bench import layer_rgb
+    from lab.bench import layer_rgb
     return layer_rgb(channels, layer)
 
 

@@ -209,12 +209,6 @@ def visible_normal_pdf(n_dot_v, n_dot_h, alpha):
     return g1 * d / (4 * n_dot_v)
 
 
-def composite(combined, specular_color, specular_indirect, reflection):
-    """composite.glsl: reflection is (premultiplied radiance, confidence)."""
-    replaced = specular_color * (reflection[..., :3] - reflection[..., 3:4] * specular_indirect)
-    return np.concatenate([np.maximum(combined[..., :3] + replaced, 0), combined[..., 3:4]], -1)
-
-
 def hammersley(count):
     """dfg_table.glsl hammersley(): (i + 0.5) / N and the radical inverse of i in base 2."""
     index = np.arange(count, dtype=np.uint32)

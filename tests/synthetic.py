@@ -63,6 +63,15 @@ def seen_by_camera(points, projection, depth):
     return seen
 
 
+def mirror_image(vectors, axis, plane=0.0):
+    """VECTORS (..., 3) mirrored in the plane where coordinate AXIS is PLANE: a point's mirror
+    image, or (PLANE 0) a direction reflected off that plane. The analytic answer of every
+    mirror-floor test: what a perfect mirror shows is the mirror image of what its rays hit."""
+    mirrored = np.array(vectors, np.float64, copy=True)
+    mirrored[..., axis] = 2.0 * plane - mirrored[..., axis]
+    return mirrored
+
+
 def intersect_boxes(origins, directions, boxes, t_max):
     """Nearest hit of rays ORIGINS + t DIRECTIONS (t > 0, below T_MAX) on axis-aligned BOXES:
     (t, index of the box or -1, outward face normal)."""

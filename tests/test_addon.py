@@ -1,5 +1,5 @@
 """The add-on inside Blender (bpy module, headless): registration, settings,
-panels, operators, baselines, compositor and the extension package."""
+panels, operators, baselines, the compositor and the extension package."""
 import dataclasses
 import json
 import os
@@ -17,14 +17,21 @@ import pytest
 
 import ssr_addon
 from conftest import REPO, SCENES
-from ssr_addon import compositor, operators, settings
-from ssr_addon.baselines import apply_baseline
-from ssr_addon.overrides import TemporaryChanges
-from ssr_addon.params import SETTINGS_SCHEMA, ChainSettings
-from ssr_addon.render_job import pass_channels, render_frame
-from ssr_addon.scene_io import camera_matrices, load_scene
-from ssr_addon.shaders import get_pass
-from ssr_addon.ui import live, overlay, panels
+from synthetic import intersect_boxes, mirror_image
+from ssr_addon.batch.compare import render_mode
+from ssr_addon.batch.frame import render_frame
+from ssr_addon.blender import result_image
+from ssr_addon.blender.baselines import COMPARISON_MODES, apply_baseline
+from ssr_addon.blender.comparison_sheet import SHEET_IMAGE
+from ssr_addon.blender.overrides import TemporaryChanges
+from ssr_addon.blender.scene_io import camera_matrices, load_scene
+from ssr_addon.core import gpu_passes
+from ssr_addon.core.layers import DEBUG_VIEW_LAYERS, exr_channels, frame_layers
+from ssr_addon.core.settings import SETTINGS_SCHEMA, ChainSettings
+from ssr_addon.ui import live, operators, overlay, panels
+from ssr_addon.ui import properties as scene_settings
+
+pytestmark = pytest.mark.blender
 
 BLENDER_EXT = os.path.join(bpy.utils.system_resource("SCRIPTS"), "addons_core", "bl_pkg", "cli", "blender_ext.py")
 sys.path.insert(0, SCENES)
@@ -101,12 +108,7 @@ def _pixel_rays(scene, width, height):
 
 def _box_hit(origins, directions, low, high):
     """Distance along each ray to the box LOW..HIGH, inf where it misses."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        t0 = (np.asarray(low) - origins) / directions
-        t1 = (np.asarray(high) - origins) / directions
-    near = np.nanmax(np.minimum(t0, t1), axis=-1)
-    far = np.nanmin(np.maximum(t0, t1), axis=-1)
-    return np.where((far >= near) & (far > 0), np.maximum(near, 0), np.inf)
+    return intersect_boxes(origins, directions, [(low, high)], np.full(origins.shape[:-1], np.inf))[0]
 
 
 def _sphere_hit(origins, directions, centre, radius):
@@ -125,7 +127,7 @@ def _mirror_mask(scene, width, height, floor_half, hit, occluders=()):
     on_floor = (t_floor > 0) & (np.abs(points[..., 0]) < floor_half) & (np.abs(points[..., 1]) < floor_half)
     for occluder in occluders:  # geometry in front of the mirror
         on_floor &= occluder(origins, directions) > t_floor
-    mirrored = directions * np.array([1.0, 1.0, -1.0])
+    mirrored = mirror_image(directions, axis=2)
     return on_floor & np.isfinite(hit(points + mirrored * 1e-4, mirrored))
 
 
@@ -135,7 +137,7 @@ def _addon_state():
     return {
         "types": set(dir(bpy.types)),
         "scene_ssr": hasattr(bpy.types.Scene, "ssr"),
-        "property_group": settings.SSRSceneSettings.is_registered,
+        "property_group": scene_settings.SSRSceneSettings.is_registered,
         "ops": set(dir(bpy.ops.render)),
         "app_handlers": {name: len(getattr(bpy.app.handlers, name)) for name in dir(bpy.app.handlers)
                          if isinstance(getattr(bpy.app.handlers, name), list)},
@@ -176,7 +178,7 @@ def test_property_group_has_every_schema_field_with_its_default(addon):
         assert prop.default == pytest.approx(spec.default, rel=1e-6), spec.name
         if spec.metadata["min"] is not None:
             assert (prop.hard_min, prop.hard_max) == pytest.approx((spec.metadata["min"], spec.metadata["max"]))
-    assert settings.chain_settings(bpy.context.scene.ssr) == _float32(ChainSettings())
+    assert scene_settings.chain_settings(bpy.context.scene.ssr) == _float32(ChainSettings())
 
 
 def _float32(chain):
@@ -196,8 +198,8 @@ def _other_value(spec):
 
 
 def test_presets_set_every_setting(addon):
-    from ssr_addon.params import preset
-    from ssr_addon.settings import chain_settings
+    from ssr_addon.core.settings import preset
+    from ssr_addon.ui.properties import chain_settings
     scene = bpy.context.scene
     for name in ("high", "draft"):
         assert bpy.ops.render.ssr_apply_preset(preset=name) == {"FINISHED"}
@@ -210,7 +212,7 @@ def test_chain_settings_round_trip(addon):
     assert expected != ChainSettings()
     for spec in SETTINGS_SCHEMA:
         setattr(scene_settings, spec.name, getattr(expected, spec.name))
-    assert settings.chain_settings(scene_settings) == _float32(expected)
+    assert scene_settings.chain_settings(scene_settings) == _float32(expected)
 
 
 def test_new_schema_fields_need_no_edit_to_settings_or_panels():
@@ -223,10 +225,10 @@ def test_new_schema_fields_need_no_edit_to_settings_or_panels():
         rays: int = dataclasses.field(default=4, metadata={"group": "resolve", "description": "r"})
         mode: str = dataclasses.field(default="A", metadata={"group": "extra", "items": (("A", "A", ""), ("B", "B", ""))})
     schema = dataclasses.fields(Extended)
-    assert settings.grouped_fields(schema) == {
+    assert scene_settings.grouped_fields(schema) == {
         "tracing": ["thickness"], "resolve": ["rays"], "temporal": ["history"], "fading": ["edge_fade"],
         "extra": ["mode"]}
-    group = settings.settings_group(schema)
+    group = scene_settings.settings_group(schema)
     bpy.utils.register_class(group)
     try:
         properties = group.bl_rna.properties
@@ -238,7 +240,11 @@ def test_new_schema_fields_need_no_edit_to_settings_or_panels():
 
 
 def test_debug_views_offered_are_the_ones_the_image_can_show():
-    assert [item[0] for item in settings.DEBUG_VIEWS] == list(compositor.DEBUG_VIEW_LAYERS)
+    """The Debug View setting offers the final image and each layer a pass declares a view on,
+    and every one of those layers is written to the passes EXR."""
+    offered = [item[0] for item in scene_settings.UI_PROPERTIES["debug_view"].keywords["items"]]
+    assert offered == ["FINAL", *DEBUG_VIEW_LAYERS]
+    assert set(DEBUG_VIEW_LAYERS.values()) <= {layer.name for _, layer in frame_layers()}
 
 
 # --- panels ----------------------------------------------------------------------------------------------------
@@ -275,7 +281,7 @@ def _draw(panel, method, scene):
 def test_render_panels_draw_every_setting_and_grey_out_with_a_reason(addon):
     scene = _mirror_floor(*SMALL)
     sub_panels = [cls for cls in panels._registered if getattr(cls, "bl_parent_id", "") == "RENDER_PT_ssr"]
-    assert [cls.bl_label for cls in sub_panels] == [group.title() for group in settings.grouped_fields()]
+    assert [cls.bl_label for cls in sub_panels] == [group.title() for group in scene_settings.grouped_fields()]
     drawn = [entry[1] for panel in sub_panels for entry in _draw(panel, "draw", scene) if entry[0] == "prop"]
     assert sorted(drawn) == sorted(spec.name for spec in SETTINGS_SCHEMA if spec.name != "use_ssr")
     assert _draw(panels.RENDER_PT_ssr, "draw_header", scene) == [("prop", "use_ssr", True, False)]
@@ -320,18 +326,20 @@ def _image_pixels(image):
     return pixels.reshape(height, width, 4)[::-1]  # image order, row 0 at the top
 
 
+@pytest.mark.slow
 def test_render_frame_operator_makes_a_float_scene_linear_image(addon):
     scene = _mirror_floor(*SMALL)
     scene.ssr.comparison_mode = "SSR"
     assert bpy.ops.render.ssr_render_frame() == {"FINISHED"}
-    image = bpy.data.images[compositor.RESULT_IMAGE]
+    image = bpy.data.images[result_image.RESULT_IMAGE]
     assert image.is_float and tuple(image.size) == SMALL
     assert image.colorspace_settings.name == "Linear Rec.709"
     final = _image_pixels(image)
     assert np.isfinite(final).all() and final[..., :3].max() > 0.1
-    np.testing.assert_array_equal(final, compositor._last_images["final"])  # rows stored bottom-up
+    last_final, last_layers = result_image.last_result()
+    np.testing.assert_array_equal(final, last_final)  # rows stored bottom-up
 
-    layers = pass_channels(compositor._last_images)
+    layers = exr_channels(last_layers)
     scene.ssr.debug_view = "CONFIDENCE"  # switches the image without a new render
     confidence = _image_pixels(image)
     np.testing.assert_array_equal(confidence[..., :3], np.repeat(layers["SSR Confidence.V"][..., None], 3, axis=2))
@@ -347,15 +355,16 @@ def test_render_frame_operator_makes_a_float_scene_linear_image(addon):
     scene.ssr.debug_view = "RAY_CLASS"
     assert set(np.unique(_image_pixels(image)[..., 0])) <= {0.0, 1.0, 2.0}
 
-    assert get_pass.cache_info().currsize > 0
+    assert gpu_passes._compiled
     ssr_addon.unregister()  # disabling the add-on releases what the render kept
     try:
-        assert get_pass.cache_info().currsize == 0, "the chain's compiled GPU shaders are released"
-        assert compositor._last_images is None
+        assert not gpu_passes._compiled, "the chain's compiled GPU shaders are released"
+        assert result_image.last_result() is None
     finally:
         ssr_addon.register()  # for the fixture's teardown
 
 
+@pytest.mark.slow
 def test_operators_report_user_errors_without_a_traceback(addon):
     scene = _mirror_floor(*SMALL)
     objects_before = set(bpy.data.objects.keys())
@@ -373,6 +382,7 @@ def test_operators_report_user_errors_without_a_traceback(addon):
         bpy.ops.render.ssr_render_frame()
 
 
+@pytest.mark.slow
 def test_render_animation_writes_every_frame_in_background(addon, tmp_path):
     scene = _mirror_floor(*SMALL)
     scene.ssr.comparison_mode = "NONE"  # the frame loop is under test, not the chain
@@ -389,6 +399,7 @@ def test_render_animation_writes_every_frame_in_background(addon, tmp_path):
     assert scene.frame_current == 7
 
 
+@pytest.mark.slow
 def test_compositor_outputs_the_result_and_keeps_post_processing(addon, tmp_path):
     scene = _sculpture_scene()
     scene.render.engine = "BLENDER_WORKBENCH"  # the render itself is replaced: keep it cheap
@@ -396,7 +407,7 @@ def test_compositor_outputs_the_result_and_keeps_post_processing(addon, tmp_path
     gradient[..., 0] = np.linspace(0, 2, SMALL[0])[None, :]
     gradient[..., 1] = np.linspace(0, 1, SMALL[1])[:, None]
     gradient[..., 3] = 1
-    compositor.publish_image(compositor.RESULT_IMAGE, gradient)
+    result_image.publish_image(result_image.RESULT_IMAGE, gradient)
     assert bpy.ops.render.ssr_setup_compositor() == {"FINISHED"}
     composited = _render_composite(scene, tmp_path / "composited.exr")
     np.testing.assert_allclose(composited, gradient, atol=1e-3)
@@ -454,7 +465,7 @@ def sculpture_comparison():
         state_before = (set(bpy.data.objects.keys()), len(bpy.data.lightprobes), scene.eevee.use_raytracing)
         assert bpy.ops.render.ssr_compare() == {"FINISHED"}
         state_after = (set(bpy.data.objects.keys()), len(bpy.data.lightprobes), scene.eevee.use_raytracing)
-        sheet = _image_pixels(bpy.data.images[compositor.SHEET_IMAGE])
+        sheet = _image_pixels(bpy.data.images[SHEET_IMAGE])
 
         def block(origins, directions):
             return _box_hit(origins, directions, BLOCK_LOW, BLOCK_HIGH)
@@ -464,17 +475,18 @@ def sculpture_comparison():
         ssr_addon.unregister()
     width, height = SMALL
     columns = {mode: sheet[:, index * width:(index + 1) * width]
-               for index, (mode, _, _) in enumerate(settings.COMPARISON_MODES)}
+               for index, (mode, _, _) in enumerate(COMPARISON_MODES)}
     return SimpleNamespace(
         sheet=sheet, scene_restored=state_before == state_after, shows_block=shows_block, base=base,
         labels={mode: column[:-height] for mode, column in columns.items()},
         tiles={mode: column[-height:] for mode, column in columns.items()})
 
 
+@pytest.mark.slow
 def test_compare_sheet_shows_every_mode_labelled(sculpture_comparison):
     comparison = sculpture_comparison
     width, height = SMALL
-    assert comparison.sheet.shape[1] == len(settings.COMPARISON_MODES) * width
+    assert comparison.sheet.shape[1] == len(COMPARISON_MODES) * width
     assert np.isfinite(comparison.sheet).all() and comparison.scene_restored
     for mode, label in comparison.labels.items():
         assert 0.02 < (label[..., 0] > 0.5).mean() < 0.5, f"the {mode} label has no text"
@@ -484,6 +496,7 @@ def test_compare_sheet_shows_every_mode_labelled(sculpture_comparison):
         assert _red_excess(comparison.tiles[mode]).max() > 1.0, f"the {mode} tile shows the glowing block"
 
 
+@pytest.mark.slow
 def test_cubemap_has_no_self_reflection_while_ssr_has(sculpture_comparison):
     tiles, shows_block = sculpture_comparison.tiles, sculpture_comparison.shows_block
     assert shows_block.sum() >= 20
@@ -499,6 +512,7 @@ def test_cubemap_has_no_self_reflection_while_ssr_has(sculpture_comparison):
 BEACON_CENTRE, BEACON_RADIUS = (0.0, 10.0, 5.0), 1.0  # above the frame; its mirror image is in it
 
 
+@pytest.mark.slow
 def test_planar_baseline_matches_the_analytic_mirror_image_off_screen_too(addon):
     width, height = 96, 54
     scene = _mirror_floor(width, height)
@@ -519,7 +533,7 @@ def test_planar_baseline_matches_the_analytic_mirror_image_off_screen_too(addon)
     assert expected.sum() >= 50
 
     request = replace(operators.render_request(scene), samples=8)
-    planar = operators.render_mode(scene, "PLANAR", request)[0]["final"]
+    planar = render_mode(scene, "PLANAR", request)[0].final
     screen_trace_only, _ = render_frame(scene, replace(request, method="eevee-rt"))  # no plane probe
     found = _blue_excess(planar) > 1.5
     overlap = (found & expected).sum() / expected.sum()
@@ -527,7 +541,7 @@ def test_planar_baseline_matches_the_analytic_mirror_image_off_screen_too(addon)
     rows, columns = np.nonzero(found)
     expected_rows, expected_columns = np.nonzero(expected)
     assert abs(rows.mean() - expected_rows.mean()) < 1.5 and abs(columns.mean() - expected_columns.mean()) < 1.5
-    assert (_blue_excess(screen_trace_only["final"]) > 1.5)[expected].mean() < 0.1, \
+    assert (_blue_excess(screen_trace_only.final) > 1.5)[expected].mean() < 0.1, \
         "screen-space tracing alone cannot reflect what is off screen"
 
 
@@ -595,6 +609,7 @@ def test_default_cubemap_sits_in_free_space_at_eye_height(addon):
     assert np.hypot(location[0], location[1]) < 1.0, f"{location}: beside the pillar, not across the room"
 
 
+@pytest.mark.slow
 def test_default_cubemap_shows_the_marker_misplaced_not_as_a_giant_disc(addon):
     """On the mirror floor the cubemap reflects the cubes and the marker, imperfectly: shifted and rescaled.
     The marker's true mirror image covers a known small area; its cubemap image may be a few times that, not
@@ -602,7 +617,7 @@ def test_default_cubemap_shows_the_marker_misplaced_not_as_a_giant_disc(addon):
     overlaps its true mirror image somewhat (the old point smeared them sideways, overlapping none)."""
     width, height = 128, 72
     scene = _mirror_floor(width, height)
-    image = operators.render_mode(scene, "CUBEMAP", replace(operators.render_request(scene), samples=4))[0]["final"]
+    image = render_mode(scene, "CUBEMAP", replace(operators.render_request(scene), samples=4))[0].final
     origins, directions = _pixel_rays(scene, width, height)
     marker_centre, marker_radius = (0.0, 3.0, 1.2), 0.35  # test_scenes/mirror_floor.py
 
@@ -635,7 +650,7 @@ INSTALL_AND_ENABLE = textwrap.dedent("""
              "operator": "ssr_render_frame" in dir(bpy.ops.render),
              "thickness": bpy.context.scene.ssr.thickness}
     # A render wrangler's entry point: the installed extension's command line, loading a .py scene.
-    cli = importlib.import_module(module + ".ssr_addon.cli")
+    cli = importlib.import_module(module + ".ssr_addon.batch.cli")
     cli.main(["render", sys.argv[2], "--method", "none", "--resolution", "32x18", "--out", sys.argv[3]])
     state["enabled_after_cli"] = module in bpy.context.preferences.addons and hasattr(bpy.types.Scene, "ssr")
     addon_utils.disable(module)
@@ -644,6 +659,7 @@ INSTALL_AND_ENABLE = textwrap.dedent("""
 """)
 
 
+@pytest.mark.slow
 def test_built_extension_installs_enables_and_disables(tmp_path):
     subprocess.run([sys.executable, BLENDER_EXT, "build", "--source-dir", REPO, "--output-dir", str(tmp_path)],
                    check=True, capture_output=True)
@@ -669,16 +685,17 @@ def test_built_extension_installs_enables_and_disables(tmp_path):
     assert state == {"enabled": True, "scene_property": True, "operator": True,
                      "thickness": pytest.approx(0.2), "enabled_after_cli": True, "disabled_cleanly": True}
     assert (tmp_path / "cli_out" / "frame_0001.exr").is_file()
-    assert (user_dir / "extensions" / "user_default" / "stochastic_ssr" / "ssr_addon" / "gpu_shaders").is_dir()
+    assert (user_dir / "extensions" / "user_default" / "stochastic_ssr" / "ssr_addon" / "core" / "shaders").is_dir()
 
 
+@pytest.mark.slow
 def test_the_compare_ssr_tile_is_exactly_a_ssr_render(addon):
     """compare's SSR tile used to capture a cubemap of its own as the fallback (a cream disc around
     the mirror floor's green box that `render --method ssr` never showed); now it is the same render."""
     scene = _mirror_floor(64, 36)
     request = replace(operators.render_request(scene), samples=4)
     lightprobes = len(bpy.data.lightprobes)
-    tile = operators.render_mode(scene, "SSR", request)[0]["final"]
+    tile = render_mode(scene, "SSR", request)[0].final
     assert len(bpy.data.lightprobes) == lightprobes
     rendered, _ = render_frame(scene, request)
-    np.testing.assert_allclose(tile, rendered["final"], atol=1e-4)
+    np.testing.assert_allclose(tile, rendered.final, atol=1e-4)

@@ -12,9 +12,13 @@ import pytest
 
 from conftest import metal_floor_under
 from synthetic import perspective
-from ssr_addon.analytic_lamps import Lamp, lamp_specular
-from ssr_addon.errors import SSRError
-from ssr_addon.passes import lamp_split_method, render_passes
+from gpu_harness import lamp_specular, passes_lamp_split
+from ssr_addon.blender.render_passes import render_passes
+from ssr_addon.blender.render_setup import decide_lamp_split, decide_render
+from ssr_addon.core.errors import SSRError
+from ssr_addon.core.lamp_split import Lamp
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 HEIGHT = 2.0  # the camera looks straight down at the floor z = 0 from this height
 HALF_FOV = math.radians(30)
@@ -102,8 +106,7 @@ def test_the_lamp_pass_matches_a_monte_carlo_integral(gpu_backend, lamp_name, ro
     depth = np.full(SIZE[::-1], HEIGHT, np.float32)
     normal = np.zeros(SIZE[::-1] + (3,), np.float32)
     normal[..., 2] = 1
-    computed = lamp_specular([lamp], depth, normal, np.full(SIZE[::-1], roughness, np.float32), view, projection,
-                             1e9)
+    computed = lamp_specular([lamp], depth, normal, np.full(SIZE[::-1], roughness, np.float32), view, projection)
     rng = np.random.default_rng(7)
     peak = computed[..., 0].max()
     assert peak > 0, "the lamp must light the floor"
@@ -126,11 +129,11 @@ LIGHTS = {
 
 @pytest.fixture(scope="module", params=sorted(LIGHTS))
 def floor_splits(request, gpu_backend):
-    """(light type, the floor's exact split (lamp_split=render), its analytic split, floor mask)
-    on a glossy metal floor under one light of each type."""
+    """(light type, the floor's exact split (lamp_split=render), its analytic lamp highlights,
+    floor mask) on a glossy metal floor under one light of each type."""
     scene = metal_floor_under(request.param, **LIGHTS[request.param])
-    exact = render_passes(scene, "eevee", samples=8, lamp_split="render")
-    analytic = render_passes(scene, "eevee", samples=8, lamp_split="analytic")
+    exact = render_passes(scene, decide_render(scene, samples=8, lamp_split="render"))
+    analytic, _ = passes_lamp_split(render_passes(scene, decide_render(scene, samples=8, lamp_split="analytic")))
     floor = exact.depth < 1e9
     assert exact.specular_direct[floor].sum() > 0, "the lamp must light the floor"
     return request.param, exact, analytic, floor
@@ -141,7 +144,7 @@ def test_the_analytic_lamps_carry_eevees_light(floor_splits):
     within 15 % (EEVEE integrates a fitted lobe, LTC, not GGX itself; a wrong unit convention
     is off by pi or more)."""
     light_type, exact, analytic, floor = floor_splits
-    ratio = analytic.specular_direct[floor].sum() / exact.specular_direct[floor].sum()
+    ratio = analytic[floor].sum() / exact.specular_direct[floor].sum()
     print(f"{light_type}: analytic / rendered highlight light {ratio:.3f}")
     assert 0.85 <= ratio <= 1.15
 
@@ -153,7 +156,7 @@ def test_the_analytic_split_moves_the_image_by_at_most_2_percent(floor_splits):
     """What the split's error can move in the final image, specular colour times the
     highlight's error, stays under 2 % of the image on the floor (the Cost issue's bound)."""
     light_type, exact, analytic, floor = floor_splits
-    image_error = (exact.specular_color * np.abs(analytic.specular_direct - exact.specular_direct))[floor].sum() \
+    image_error = (exact.specular_color * np.abs(analytic - exact.specular_direct))[floor].sum() \
         / exact.combined[..., :3][floor].sum()
     print(f"{light_type}: share of the image {image_error:.2%}")
     assert image_error <= 0.02
@@ -163,19 +166,19 @@ def test_analytic_refuses_lights_it_cannot_model():
     """Light linking is beyond the analytic lamps: asking for them says which light stops
     them, in one line; auto is analytic until then, and a rendered split after."""
     scene = metal_floor_under("POINT", energy=100)
-    assert lamp_split_method("eevee", "analytic", scene) == "analytic"
-    assert lamp_split_method("eevee", "auto", scene) == "analytic"
+    assert decide_lamp_split(scene, "eevee", "analytic").method == "analytic"
+    assert decide_lamp_split(scene, "eevee", "auto").method == "analytic"
     linked = bpy.data.collections.new("Linked")
     scene.objects["Lamp"].light_linking.receiver_collection = linked
     with pytest.raises(SSRError, match="'Lamp' uses light linking"):
-        lamp_split_method("eevee", "analytic", scene)
-    assert lamp_split_method("eevee", "auto", scene) == "unshadowed"
+        decide_lamp_split(scene, "eevee", "analytic")
+    assert decide_lamp_split(scene, "eevee", "auto").method == "unshadowed"
 
 
 def test_a_lamp_array_packs_only_the_lamps_given():
     """LampBlock's array is MAX_LAMPS long; lamp_block packs the scene's lamps alone, so the rest
     must read as zero (lamp_count bounds the shader's loop) and more than fit is an error."""
-    from ssr_addon.gpu_params import LAMP_BLOCK, LAMP_DATA, MAX_LAMPS
+    from ssr_addon.core.uniforms import LAMP_BLOCK, LAMP_DATA, MAX_LAMPS
     lamp = {field: 1 for field in LAMP_DATA.offsets}
     values = {field: 0 for field in LAMP_BLOCK.offsets}
     words = LAMP_BLOCK.pack(dict(values, lamps=[lamp, lamp]))
@@ -194,27 +197,29 @@ def test_the_chain_splits_the_lamps_off_on_the_gpu(gpu_backend):
     import os
 
     from conftest import SCENES
-    from ssr_addon.analytic_lamps import AnalyticLampLight
-    from ssr_addon.chain import ChainInputs, ChainState, run_chain
-    from ssr_addon.gpu_backend import download
-    from ssr_addon.params import ChainSettings
-    from ssr_addon.render_job import RenderRequest, pass_channels, render_frame
-    from ssr_addon.scene_io import load_scene
+    from ssr_addon.batch.frame import render_frame
+    from ssr_addon.batch.request import RenderRequest
+    from ssr_addon.blender.scene_io import load_scene
+    from ssr_addon.core.chain import ChainState, run_chain
+    from ssr_addon.core.gpu_backend import download
+    from ssr_addon.core.inputs import ChainInputs
+    from ssr_addon.core.layers import exr_channels
+    from ssr_addon.core.settings import ChainSettings
     scene = load_scene(os.path.join(SCENES, "mirror_floor.py"))
     settings = ChainSettings(lamp_split="analytic")
     images, timer = render_frame(scene, RenderRequest(out_dir="", resolution=(64, 36), samples=4, settings=settings))
-    passes = images["passes"]
-    assert isinstance(passes.lamp_light, AnalyticLampLight) and "lamp_split" in timer.milliseconds
+    passes = images.passes
+    assert passes.lamps is not None and passes.lamp_light is None and "lamp_split" in timer.milliseconds
 
-    read_back = dataclasses.replace(passes, lamp_light=passes.specular_direct)
-    state = ChainState.still()
-    state.begin_frame(scene.frame_current)
-    final = download(run_chain(ChainInputs.from_passes(read_back, settings), settings, state).final_tx)
-    np.testing.assert_allclose(images["final"], final, atol=1e-6)
-
-    channels = pass_channels(images)
+    channels = exr_channels(images.layers)
     direct, indirect = (np.stack([channels[f"Specular {part}.{c}"] for c in "RGB"], -1)
                         for part in ("Direct", "Indirect"))
+    read_back = dataclasses.replace(passes, lamp_light=direct, lamps=None)
+    state = ChainState.still()
+    state.begin_frame(scene.frame_current)
+    final = download(run_chain(ChainInputs.from_passes(read_back, settings), settings, state)["final"])
+    np.testing.assert_allclose(images.final, final, atol=1e-6)
+
     assert direct.max() > 0.1, "the lamps must light the floor"
-    np.testing.assert_allclose(direct, passes.specular_direct, atol=1e-6)
+    np.testing.assert_allclose(direct, passes_lamp_split(passes)[0], atol=1e-6)
     np.testing.assert_allclose(direct + indirect, np.maximum(passes.specular_light, direct), rtol=1e-5, atol=1e-6)

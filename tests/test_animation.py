@@ -9,7 +9,9 @@ import numpy as np
 import pytest
 
 from conftest import rgb
-from ssr_addon import bench
+from lab import bench
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 RESOLUTION = "160x90"
 EEVEE_SAMPLES = "4"

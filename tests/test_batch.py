@@ -7,6 +7,8 @@ import pytest
 
 from conftest import read_exr, rgb, run_cli
 
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
 
 def final(folder, frame):
     return rgb(read_exr(os.path.join(folder, f"frame_{frame:04d}.exr")))
@@ -61,20 +63,21 @@ def test_frame_range_outside_the_scene(dolly, tmp_path):
 
 def test_a_failing_frame_is_reported_and_skipped(dolly, tmp_path, monkeypatch):
     """--on-error skip: the other frames are written, the failure is in the report and the exit status."""
-    from ssr_addon import render_job
-    from ssr_addon.errors import SSRError
-    from ssr_addon.scene_io import load_scene
-    real_render_frame = render_job.render_frame
+    from ssr_addon.batch import run
+    from ssr_addon.batch.request import RenderRequest
+    from ssr_addon.blender.scene_io import load_scene
+    from ssr_addon.core.errors import SSRError
+    real_render_frame = run.render_frame
 
     def failing_on_frame_2(scene, request, state=None):
         if scene.frame_current == 2:
             raise SSRError("frame 2: the result has NaN or Inf pixels; nothing written")
         return real_render_frame(scene, request, state)
-    monkeypatch.setattr(render_job, "render_frame", failing_on_frame_2)
+    monkeypatch.setattr(run, "render_frame", failing_on_frame_2)
     scene = load_scene(str(dolly))
-    request = render_job.RenderRequest(out_dir=str(tmp_path), method="none", frames=(1, 3), on_error="skip")
+    request = RenderRequest(out_dir=str(tmp_path), method="none", frames=(1, 3), on_error="skip")
     with pytest.raises(SSRError, match="1 frame\\(s\\) failed: 2"):
-        render_job.run_render(scene, str(dolly), request, log=lambda line: None)
+        run.run_render(scene, str(dolly), request, log=lambda line: None)
     assert not any(name.startswith("frame_0002") for name in os.listdir(tmp_path))
     assert all(os.path.exists(tmp_path / f"frame_000{frame}.exr") for frame in (1, 3))
     with open(tmp_path / "report.json", encoding="utf-8") as stream:
@@ -83,14 +86,16 @@ def test_a_failing_frame_is_reported_and_skipped(dolly, tmp_path, monkeypatch):
 
 
 def test_an_interrupted_write_leaves_no_partial_frame(dolly, tmp_path, monkeypatch):
-    from ssr_addon import render_job
-    from ssr_addon.scene_io import load_scene
+    from ssr_addon.batch import frame
+    from ssr_addon.batch.request import RenderRequest
+    from ssr_addon.batch.run import run_render
+    from ssr_addon.blender.scene_io import load_scene
 
     def interrupted(path, rgba, scene):
         raise KeyboardInterrupt
-    monkeypatch.setattr(render_job, "write_display_png", interrupted)
+    monkeypatch.setattr(frame, "write_display_png", interrupted)
     scene = load_scene(str(dolly))
-    request = render_job.RenderRequest(out_dir=str(tmp_path), method="none", frames=(1, 1))
+    request = RenderRequest(out_dir=str(tmp_path), method="none", frames=(1, 1))
     with pytest.raises(KeyboardInterrupt):
-        render_job.run_render(scene, str(dolly), request, log=lambda line: None)
+        run_render(scene, str(dolly), request, log=lambda line: None)
     assert not [name for name in os.listdir(tmp_path) if name.startswith(("frame_", ".frame_"))]

@@ -4,8 +4,10 @@ import json
 
 import pytest
 
-from conftest import run_cli
-from ssr_addon import bench
+from conftest import run_lab
+from lab import bench
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 SCENE = "glossy_corridor"  # no lamps, so no lamp split
 TINY = ("--scenes", SCENE, "--resolution", "64x36", "--frames", "1", "--samples", "1", "--reference-samples", "64",
@@ -17,8 +19,8 @@ def runs(tmp_path_factory):
     """A full run, then a second one of one contender sharing the reference cache."""
     root = tmp_path_factory.mktemp("bench")
     cache = root / "cache"
-    run_cli("bench", *TINY, "--cache", cache, "--out", root / "first")
-    run_cli("bench", *TINY, "--cache", cache, "--out", root / "second", "--contenders", "none")
+    run_lab("bench", *TINY, "--cache", cache, "--out", root / "first")
+    run_lab("bench", *TINY, "--cache", cache, "--out", root / "second", "--contenders", "none")
     return {name: json.loads((root / name / "bench.json").read_text()) for name in ("first", "second")}, root
 
 
@@ -81,13 +83,13 @@ def test_reference_is_rendered_once(runs):
     assert none_second["flip_reflective"] == pytest.approx(none_first["flip_reflective"], abs=1e-6)
 
 
-def test_readme_block_is_replaced_in_place(runs, tmp_path):
+def test_page_block_is_replaced_in_place(runs, tmp_path):
     report, root = runs[0]["first"], runs[1]
-    readme = tmp_path / "README.md"
-    readme.write_text("# Project\n\nIntro.\n")
+    page = tmp_path / "measurements.md"
+    page.write_text("# Project\n\nIntro.\n")
     for _ in range(2):
-        bench.update_readme(str(readme), report, str(root / "first"))
-    text = readme.read_text()
+        bench.update_page(str(page), report, str(root / "first"))
+    text = page.read_text()
     assert text.startswith("# Project\n\nIntro.\n\n## Benchmark\n")
     assert text.count("## Benchmark") == 1
     assert text.count("<!-- bench:start -->") == 1 and text.count("<!-- bench:end -->") == 1
@@ -104,7 +106,7 @@ def test_readme_block_is_replaced_in_place(runs, tmp_path):
     (("--frames", "0"), "--frames"),
 ])
 def test_bad_bench_input_gets_one_clear_line(tmp_path, extra, expected):
-    result = run_cli("bench", "--out", tmp_path / "out", "--no-stability", *extra, check=False)
+    result = run_lab("bench", "--out", tmp_path / "out", "--no-stability", *extra, check=False)
     lines = [line for line in result.stderr.splitlines() if line.strip() and "EGL" not in line]
     assert result.returncode == 2
     assert len(lines) == 1 and lines[0].startswith("error:") and expected in lines[0], result.stderr

@@ -9,9 +9,9 @@ import numpy as np
 from scipy.ndimage import maximum_filter, minimum_filter
 
 from gpu_harness import CLIP_END, run_synthetic_chain
-from synthetic import intersect_boxes, perspective, pixel_rays, raycast, seen_by_camera
-from ssr_addon.chain import ray_budget
-from ssr_addon.params import preset
+from synthetic import intersect_boxes, mirror_image, perspective, pixel_rays, raycast, seen_by_camera
+from ssr_addon.core.ray_budget import ray_budget
+from ssr_addon.core.settings import preset
 
 WIDTH, HEIGHT = 640, 360
 FLOOR_Y = -1.0
@@ -41,7 +41,7 @@ def analytic_reflection(projection, depth, rays, floor):
     """(H, W) index of the box each floor pixel's mirror ray shows, where the camera sees that
     point too (SSR can show nothing else); -1 elsewhere."""
     points = rays * depth[..., None]
-    mirrored = rays / np.linalg.norm(rays, axis=-1, keepdims=True) * (1.0, -1.0, 1.0)
+    mirrored = mirror_image(rays / np.linalg.norm(rays, axis=-1, keepdims=True), axis=1)
     t, box, _ = intersect_boxes(points, mirrored, BOXES, np.full(depth.shape, 1e3))
     seen = seen_by_camera(points + mirrored * t[..., None], projection, depth)
     return np.where(floor & (box >= 0) & seen, box, -1)

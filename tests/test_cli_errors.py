@@ -5,6 +5,8 @@ import pytest
 
 from conftest import SCENES, run_cli
 
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
 NO_CAMERA = """
 import bpy
 def build(scene):

@@ -6,7 +6,10 @@ import numpy as np
 import pytest
 
 from conftest import SCENES
-from ssr_addon.params import ChainSettings
+from gpu_harness import passes_lamp_split
+from ssr_addon.core.settings import ChainSettings
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 RESOLUTION = (160, 90)
 
@@ -14,16 +17,18 @@ RESOLUTION = (160, 90)
 @pytest.fixture(scope="module")
 def spheres(gpu_backend):
     """EEVEE passes and a Cycles reference of the rough-spheres scene, rendered once."""
-    from ssr_addon.passes import render_passes
-    from ssr_addon.scene_io import load_scene
+    from ssr_addon.blender.render_passes import render_passes
+    from ssr_addon.blender.render_setup import decide_render
+    from ssr_addon.blender.scene_io import load_scene
     scene = load_scene(os.path.join(SCENES, "rough_spheres.py"))
-    passes = render_passes(scene, "eevee", samples=8, resolution=RESOLUTION)
-    reference = render_passes(scene, "cycles", samples=256, resolution=RESOLUTION).combined[..., :3]
+    passes = render_passes(scene, decide_render(scene, "eevee", samples=8, resolution=RESOLUTION))
+    cycles = render_passes(scene, decide_render(scene, "cycles", samples=256, resolution=RESOLUTION))
+    reference = cycles.combined[..., :3]
     # Glossy pixels SSR is responsible for: the spheres below max_roughness, away from the
     # sun's highlight (a lamp, which both engines shade directly and differently). The highlight
     # is grown by two pixels: its rim, where the split's lobe and EEVEE's differ most, is still it.
     glossy = ((passes.roughness > 0.02) & (passes.roughness <= 0.45) & (passes.specular_color.mean(-1) > 0.3)
-              & ~grown(passes.specular_direct.max(-1) >= 0.05, 2))
+              & ~grown(passes_lamp_split(passes)[0].max(-1) >= 0.05, 2))
     assert glossy.sum() > 300
     return passes, reference, glossy
 
@@ -40,15 +45,16 @@ def grown(mask, pixels):
 def chain_final(spheres, settings, frames=1, first_frame=0):
     """The composited image of a still (FRAMES 1) or after FRAMES animation frames of a static
     camera, numbered from FIRST_FRAME."""
-    from ssr_addon.chain import ChainInputs, ChainState, run_chain
-    from ssr_addon.gpu_backend import download
+    from ssr_addon.core.chain import ChainState, run_chain
+    from ssr_addon.core.inputs import ChainInputs
+    from ssr_addon.core.gpu_backend import download
     passes = spheres[0]
     inputs = ChainInputs.from_passes(passes, settings)
     state = ChainState.still() if frames == 1 else ChainState()
     for frame in range(first_frame, first_frame + frames):
         state.begin_frame(frame)
         outputs = run_chain(inputs, settings, state)
-    final = download(outputs.final_tx)[..., :3]
+    final = download(outputs["final"])[..., :3]
     assert np.isfinite(final).all()
     return final
 
@@ -110,12 +116,13 @@ def test_reuse_and_temporal_filter_beat_the_same_rays_without_them(spheres):
 
 def still_reflection(spheres, settings):
     """(premultiplied reflection RGB, iterations run) of a still."""
-    from ssr_addon.chain import ChainInputs, ChainState, run_chain
-    from ssr_addon.gpu_backend import download
+    from ssr_addon.core.chain import ChainState, run_chain
+    from ssr_addon.core.inputs import ChainInputs
+    from ssr_addon.core.gpu_backend import download
     state = ChainState.still()
     state.begin_frame(0)
     outputs = run_chain(ChainInputs.from_passes(spheres[0], settings), settings, state)
-    return download(outputs.reflection_tx)[..., :3], outputs.iterations
+    return download(outputs["reflection"])[..., :3], outputs.iterations
 
 
 def test_a_still_accumulates_until_converged(spheres):
@@ -143,8 +150,8 @@ def test_convergence_check_measures_the_change_per_reflecting_tile(gpu_backend):
     """The GPU tile sums (convergence.ConvergenceCheck) on changes whose answer is known: every
     tile counts alike, pixels that reflect at neither check do not count, and there is nothing
     to compare with on the first check, after forget() or when the size changes."""
-    from ssr_addon.convergence import ConvergenceCheck
-    from ssr_addon.gpu_backend import TexturePool, upload
+    from ssr_addon.core.convergence import ConvergenceCheck
+    from ssr_addon.core.gpu_backend import TexturePool, upload
     pool, check = TexturePool(), ConvergenceCheck()
     height, width = 20, 40  # 3 x 2 tiles of 16 pixels, the last column and row partial
     steady = np.ones((height, width, 4), np.float32)

@@ -18,24 +18,26 @@ import pytest
 
 from conftest import REPO, SCENES, RenderedScene
 
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
 SCENE = os.path.join(SCENES, "emissive_panel.py")
 WIDTH, HEIGHT = 160, 90
 RESOLUTION = f"{WIDTH}x{HEIGHT}"
 SAMPLES = "1024"           # Cycles under SSR: a small bright highlight needs many samples per pixel
 REFERENCE_SAMPLES = "2048"  # the truth, an estimate of its own (under 1% from 4096 samples already at 256)
 RAW_SAMPLES = 256
-# Composites fed other light as "what SSR replaces" (the same CLI with passes.py patched):
+# Composites fed other light as "what SSR replaces" (the same CLI with render_passes.py patched):
 # before the fix, Glossy Indirect alone; the opposite mistake, all of Glossy Direct too.
 VARIANTS = {
-    "glossy_indirect_only": "passes._emitter_specular = lambda scene, folder, lamps, timer: 0.0",
-    "all_glossy": "passes._offscreen_lamps = lambda scene: []",
+    "glossy_indirect_only": "passes.emitter_specular = lambda scene, folder, lamps, timer: 0.0",
+    "all_glossy": "passes.offscreen_lamps = lambda scene: []",
 }
 WITHIN = 0.10   # the goal: the reflection SSR stands in for is right to a tenth of it
 
 
 def render_cycles_ssr(folder, patch=None):
-    code = "import sys\nimport ssr_addon.passes as passes\n" + (patch or "") + \
-        "\nfrom ssr_addon.cli import main\nmain(sys.argv[1:])"
+    code = "import sys\nimport ssr_addon.blender.render_passes as passes\n" + (patch or "") + \
+        "\nfrom ssr_addon.batch.cli import main\nmain(sys.argv[1:])"
     result = subprocess.run([sys.executable, "-c", code, "render", SCENE, "--engine", "cycles", "--method", "ssr",
                              "--out", str(folder), "--resolution", RESOLUTION, "--samples", SAMPLES],
                             cwd=REPO, capture_output=True, text=True, timeout=600)
@@ -56,8 +58,8 @@ def runs(render_scene, tmp_path_factory):
 
 def _render_raw(scene, hide_lamps, folder):
     """Cycles' own Glossy passes of SCENE, with or without its lamps, through plain bpy."""
-    from ssr_addon.overrides import TemporaryChanges
-    from ssr_addon.passes import _render_to_exr
+    from ssr_addon.blender.overrides import TemporaryChanges
+    from ssr_addon.blender.exr_render import render_to_exr
     with TemporaryChanges() as changes:
         changes.set_all(scene.render, engine="CYCLES", resolution_x=WIDTH, resolution_y=HEIGHT,
                         resolution_percentage=100)
@@ -69,14 +71,14 @@ def _render_raw(scene, hide_lamps, folder):
         for obj in scene.objects:
             if obj.type == "LIGHT" and hide_lamps:
                 changes.set(obj, "hide_render", True)
-        return _render_to_exr(scene, os.path.join(folder, f"raw_{hide_lamps}.exr"), changes)
+        return render_to_exr(scene, os.path.join(folder, f"raw_{hide_lamps}.exr"), changes)
 
 
 @pytest.fixture(scope="module")
 def cycles_raw(tmp_path_factory):
     """Raw Cycles passes with and without the lamp, and the regions, from the scene's geometry."""
     import runpy
-    from ssr_addon.scene_io import camera_matrices, load_scene
+    from ssr_addon.blender.scene_io import camera_matrices, load_scene
     scene = load_scene(SCENE)
     constants = runpy.run_path(SCENE)
     view, projection = camera_matrices(scene, WIDTH, HEIGHT)
@@ -198,7 +200,7 @@ def test_world_and_surface_reflections_match_cycles(runs, cycles_raw):
 
 
 def test_whole_image_is_closer_to_cycles_than_either_mistake(runs):
-    from ssr_addon.bench import flip_error
+    from lab.bench import flip_error
     everywhere = np.ones(runs["truth"].shape[:2], bool)
     errors = {name: flip_error(runs["truth"], runs[name], everywhere)
               for name in ("ssr", "glossy_indirect_only", "all_glossy")}

@@ -1,8 +1,10 @@
 """The live overlay's colours against Blender's own colour management: the baked LUT
-(display_lut.py, display_transform.glsl) must show a scene-linear image as `save_render`
+(blender/colour_management.py, display_transform.glsl) must show a scene-linear image as `save_render`
 writes it, for the view transforms, looks and exposures artists use."""
 import numpy as np
 import pytest
+
+pytestmark = pytest.mark.blender
 
 
 
@@ -32,9 +34,9 @@ EXTREME = dict(spread=10.0, mean=0.25, tail=4.0, worst=8.0)
 def test_overlay_colours_match_blender_colour_management(gpu_backend, view_transform, look, exposure,
                                                          colours):
     import bpy
-    from ssr_addon.display_lut import DisplayTransform, blender_display
-    from ssr_addon.gpu_backend import TexturePool, download, upload
-    from ssr_addon.overrides import TemporaryChanges
+    from ssr_addon.blender.colour_management import DisplayTransform, blender_display
+    from ssr_addon.core.gpu_backend import TexturePool, download, upload
+    from ssr_addon.blender.overrides import TemporaryChanges
     scene = bpy.context.scene
     rgba = hdr_colours(colours["spread"])
     with TemporaryChanges() as changes:
@@ -49,8 +51,8 @@ def test_overlay_colours_match_blender_colour_management(gpu_backend, view_trans
 
 def test_debug_views_get_the_plain_srgb_curve(gpu_backend):
     import bpy
-    from ssr_addon.display_lut import DisplayTransform
-    from ssr_addon.gpu_backend import TexturePool, download, upload
+    from ssr_addon.blender.colour_management import DisplayTransform
+    from ssr_addon.core.gpu_backend import TexturePool, download, upload
     shown = download(DisplayTransform().apply(bpy.context.scene, upload(np.full((4, 4, 4), 0.5, np.float32)),
                                               TexturePool(), view_transform=False))
     assert shown[..., :3] == pytest.approx(0.7354, abs=1e-3)

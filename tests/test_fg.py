@@ -9,14 +9,16 @@ from conftest import SCENES
 from gpu_harness import run_synthetic_chain
 from oracles import dfg_table, hammersley
 from synthetic import facing_plane
-from ssr_addon.params import ChainSettings
-from ssr_addon.shaders import DFG_SAMPLES, DFG_SIZE
+from ssr_addon.core.settings import ChainSettings
+from ssr_addon.core.gpu_passes import DFG_SAMPLES, DFG_SIZE
+
+pytestmark = pytest.mark.blender
 
 
 @pytest.fixture(scope="module")
 def gpu_table(gpu_backend):
-    from ssr_addon.chain import ChainState
-    from ssr_addon.gpu_backend import download
+    from ssr_addon.core.chain import ChainState
+    from ssr_addon.core.gpu_backend import download
     depth, normal, projection = facing_plane(8, 8)
     state = ChainState.still()
     run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, ChainSettings(), state=state)
@@ -37,20 +39,23 @@ def test_dfg_table_is_converged_and_conserves_energy(gpu_table):
     assert albedo[-1, -1] < 0.5 * albedo[0, -1], "single scattering: rough microfacets shadow each other"
 
 
+@pytest.mark.slow
 def test_fg_from_the_f0_aov_matches_eevee_specular_colour(gpu_backend):
     """EEVEE weights reflected light by its own split-sum FG: ours, from the F0 AOV, must agree."""
-    from ssr_addon.passes import render_passes
-    from ssr_addon.scene_io import load_scene
+    from ssr_addon.blender.render_passes import render_passes
+    from ssr_addon.blender.render_setup import decide_render
+    from ssr_addon.blender.scene_io import load_scene
     scene = load_scene(os.path.join(SCENES, "rough_spheres.py"))
-    passes = render_passes(scene, "eevee", samples=1, resolution=(160, 90))
+    passes = render_passes(scene, decide_render(scene, "eevee", samples=1, resolution=(160, 90)))
     metal = passes.roughness <= 0.5
     # Metals: F0 is the base colour (spheres (0.95, 0.8, 0.6), floor 0.8), whatever the view angle.
     sphere = np.abs(passes.roughness - 0.25) < 0.01
     assert sphere.sum() > 50
     np.testing.assert_allclose(passes.f0[sphere], np.broadcast_to((0.95, 0.8, 0.6), passes.f0[sphere].shape),
                                atol=5e-3)
-    from ssr_addon.chain import ChainInputs, ChainState, run_chain
-    from ssr_addon.gpu_backend import download
+    from ssr_addon.core.chain import ChainState, run_chain
+    from ssr_addon.core.inputs import ChainInputs
+    from ssr_addon.core.gpu_backend import download
     settings = ChainSettings(accumulate_frames=1)
     state = ChainState.still()
     state.begin_frame(1)

@@ -10,13 +10,13 @@ import pytest
 
 from gpu_harness import run_synthetic_chain
 from oracles import ggx_normal_cdf
-from synthetic import corridor, facing_plane, perspective, pixel_rays, raycast
-from ssr_addon.frame_sequence import STRIDE, FrameSequence
-from ssr_addon.params import ChainSettings
+from synthetic import corridor, facing_plane, mirror_image, perspective, pixel_rays, raycast
+from ssr_addon.core.frame_sequence import STRIDE, FrameSequence
+from ssr_addon.core.settings import ChainSettings
 
 
 def animation_state():
-    from ssr_addon.chain import ChainState
+    from ssr_addon.core.chain import ChainState
     return ChainState()
 
 
@@ -112,7 +112,7 @@ def test_sample_indices_of_consecutive_frames_fill_every_stratum():
 def test_history_is_read_and_written_in_different_textures_every_frame(gpu_backend, monkeypatch):
     """Over a 6-frame run the temporal pass never samples the texture it draws into, and each
     frame reads exactly what the previous frame wrote."""
-    from ssr_addon import gpu_backend as backend
+    from ssr_addon.core import gpu_backend as backend
     draws = []
     original = backend.FullscreenPass.draw
 
@@ -133,11 +133,11 @@ def test_history_is_read_and_written_in_different_textures_every_frame(gpu_backe
 
 
 def test_drawing_into_a_sampled_texture_is_refused(gpu_backend):
-    from ssr_addon.gpu_backend import empty_texture
-    from ssr_addon.shaders import get_pass
+    from ssr_addon.core.gpu_backend import empty_texture
+    from ssr_addon.core.gpu_passes import COPY
     texture = empty_texture((4, 4))
     with pytest.raises(AssertionError, match="samples"):
-        get_pass("copy").draw([texture], samplers=(("source_tx", texture),))
+        COPY.draw([texture], samplers=(("source_tx", texture),))
 
 
 def project_px(points, projection, size):
@@ -183,10 +183,10 @@ def test_hit_point_reprojection_matches_the_analytic_mirror_image(gpu_backend):
     camera = np.array([pan, 0.0, 0.0])
     t_floor = -1.0 / rays[..., 1]
     floor_point = camera + t_floor[..., None] * rays
-    reflected = rays * np.array([1.0, -1.0, 1.0])
+    reflected = mirror_image(rays, axis=1)
     t_wall = (-8.0 - floor_point[..., 2]) / reflected[..., 2]
     wall_point = floor_point + t_wall[..., None] * reflected
-    image = wall_point * np.array([1.0, -1.0, 1.0]) + np.array([0.0, -2.0, 0.0])
+    image = mirror_image(wall_point, axis=1, plane=-1.0)
     expected_px = project_px(image, projection, (width, height))
     expected_px[..., 1] = height - expected_px[..., 1]  # image order, as read_px
     read_px = read_px.copy()

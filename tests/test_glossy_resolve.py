@@ -10,12 +10,15 @@ rays of one iteration; a still averages many, so left at one iteration's width t
 the settled image past the lobe.
 """
 import numpy as np
+import pytest
 
 from gpu_harness import run_synthetic_chain
 from synthetic import intersect_boxes, seen_by_camera
 from test_clean_stills import BOXES, COLOURS, HEIGHT, WIDTH, mirror_scene
-from ssr_addon.analytic_lamps import sample_visible_normals, stratified_points, visible_normal_weight
-from ssr_addon.params import preset
+from ssr_addon.core.ggx import sample_visible_normals, stratified_points, visible_normal_weight
+from ssr_addon.core.settings import preset
+
+pytestmark = pytest.mark.slow  # a Monte Carlo estimate of every glossy pixel
 
 ROUGHNESS = 0.25
 SAMPLES_PER_PIXEL = 256

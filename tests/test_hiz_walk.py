@@ -6,10 +6,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gpu_harness import CLIP_END, CLIP_START, run_synthetic_chain
+from gpu_harness import CLIP_END, CLIP_START, run_synthetic_chain, synthetic_inputs
 from oracles import ScreenRay, march_pixel_walk, min_pyramid, view_positions
 from synthetic import perspective, raycast
-from ssr_addon.params import ChainSettings
+from ssr_addon.core.settings import ChainSettings
 
 F32 = np.float32
 # Mirror rays at full resolution, every ray expensive, no fades: a trace hit is a confident hit.
@@ -63,17 +63,11 @@ def scene(gpu_backend):
     """The corridor, traced by the chain, and the walks of a few floor pixels: the longest confident
     hit, the longest hit on the pole, the longest hit on the wall through the plank's columns (it
     passes behind the plank) and the longest walk that hits nothing."""
-    from ssr_addon.chain import ChainInputs
-    from ssr_addon.gpu_backend import upload
-    from ssr_addon.hiz_walk import hiz_walk
+    from lab.hiz_walk import hiz_walk
     depth, normal, projection = corridor_with_plank()
     height, width = depth.shape
     arrays, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, SETTINGS)
-    inputs = ChainInputs(
-        radiance_tx=None, depth_tx=upload(depth), normal_tx=upload(normal), roughness_tx=None, combined_tx=None,
-        specular_color_tx=None, specular_indirect_tx=None, f0_tx=None, motion_tx=None,
-        view_matrix=np.eye(4, dtype=np.float32), projection_matrix=projection, clip_start=CLIP_START,
-        clip_end=CLIP_END)
+    inputs = synthetic_inputs(depth, normal, np.zeros_like(depth), projection)
     stats, ray_hit = arrays["ray_stats"], arrays["ray_hit"]
     floor = np.all(np.isclose(normal, (0, 1, 0)), axis=-1) & (stats[..., 0] == 2)
     hit = floor & (ray_hit[..., 3] > 0)
@@ -125,7 +119,7 @@ def test_walk_takes_the_steps_the_trace_pass_counts(scene):
         assert walk.highest_level == highest_level, name
         assert [visit.iteration for visit in walk.visits] == list(range(1, walk.iterations + 1))
     assert scene.walks["long"].highest_level >= 3, "a long ray should climb the pyramid"
-    assert any(visit.outcome == "pass behind" for visit in scene.walks["behind"].visits)
+    assert any(visit.outcome == "behind" for visit in scene.walks["behind"].visits)
 
 
 def test_levels_change_one_step_at_a_time(scene):
@@ -136,7 +130,7 @@ def test_levels_change_one_step_at_a_time(scene):
         assert max(visit.level for visit in visits) == walk.highest_level, name
         for visit, following in zip(visits, visits[1:]):
             assert abs(following.level - visit.level) <= 1, name
-            expected = {"skip": min(visit.level + 1, top), "descend": visit.level - 1, "pass behind": 0}
+            expected = {"skip": min(visit.level + 1, top), "descend": visit.level - 1, "behind": 0}
             assert following.level == expected[visit.outcome], (name, visit)
         assert all(visit.outcome != "hit" for visit in visits[:-1]), name
 
@@ -172,7 +166,7 @@ def test_pixel_tests_count_the_pixels_a_linear_walk_crosses(scene):
 
 def test_diagram_is_written(scene, tmp_path):
     import matplotlib.image
-    from ssr_addon.slides.hiz_diagram import draw_hiz_walk
+    from lab.slides.hiz_diagram import draw_hiz_walk
     for name, walk in scene.walks.items():
         path = tmp_path / f"{name}.png"
         summary = draw_hiz_walk(walk, scene.depth, str(path))
@@ -184,8 +178,8 @@ def test_diagram_is_written(scene, tmp_path):
 
 
 def test_a_pixel_of_the_world_gives_no_ray(scene, tmp_path):
-    from ssr_addon.hiz_walk import hiz_walk
-    from ssr_addon.slides.hiz_diagram import draw_hiz_walk
+    from lab.hiz_walk import hiz_walk
+    from lab.slides.hiz_diagram import draw_hiz_walk
     walk = hiz_walk(scene.inputs, SETTINGS, (0, 0))  # the top-left corner sees the sky
     assert walk.status == "no ray" and walk.visits == [] and walk.hit_pixel is None
     draw_hiz_walk(walk, scene.depth, str(tmp_path / "none.png"))

@@ -14,15 +14,17 @@ import numpy as np
 import pytest
 
 import ssr_addon
-from ssr_addon.display_lut import blender_display
-from ssr_addon.errors import SSRError
-from ssr_addon.live_view import DEBOUNCE_S, LiveSession
-from ssr_addon.overrides import TemporaryChanges
-from ssr_addon.scene_io import load_scene
+from ssr_addon.blender.colour_management import blender_display
+from ssr_addon.core.errors import SSRError
+from ssr_addon.ui.live_session import DEBOUNCE_S, LiveSession
+from ssr_addon.blender.overrides import TemporaryChanges
+from ssr_addon.blender.scene_io import load_scene
 from ssr_addon.ui import live
-from ssr_addon.viewport_capture import headless_view3d
+from ssr_addon.blender.viewport_capture import headless_view3d
 
 from conftest import SCENES, read_exr, rgb, run_cli
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 RESOLUTION = "160x90"
 
@@ -52,7 +54,8 @@ def test_the_preview_of_the_camera_view_is_the_render_of_the_frame(tmp_path):
     report = json.loads((tmp_path / "render" / "report.json").read_text())
     assert timings["iterations"] == report["frames"][0]["iterations"]  # stops where the render stops
     assert timings["time_to_first_image_ms"] <= timings["time_to_last_image_ms"]
-    assert set(timings["capture_ms"]) == {"capture", "upload", "lamp_split"} and timings["chain_ms_per_iteration"] > 0
+    assert set(timings["capture_ms"]) == {"capture", "upload"} and timings["chain_ms_per_iteration"] > 0
+    assert "lamp_split" in timings["chain_stages_ms"]  # the analytic split: the chain's first pass
     assert (tmp_path / "preview" / "first.png").is_file() and (tmp_path / "preview" / "preview.png").is_file()
 
 
@@ -90,7 +93,7 @@ def _tick_until(session, scene, clock, condition, limit=400):
 
 
 def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view):
-    from ssr_addon.gpu_backend import download
+    from ssr_addon.core.gpu_backend import download
     scene, space, region = live_view
     session = LiveSession(space, region, space.region_3d)
     clock = [0.0]
@@ -139,7 +142,7 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
 def test_the_draw_handler_draws_the_sessions_image(live_view):
     """The handler's body draws the session's image as Blender's colour management shows it."""
     import gpu
-    from ssr_addon.gpu_backend import download, upload
+    from ssr_addon.core.gpu_backend import download, upload
     scene, space, region = live_view
     session = LiveSession(space, region, space.region_3d)
     red = np.zeros((region.height, region.width, 4), np.float32)

@@ -8,7 +8,10 @@ import bpy
 import numpy as np
 import pytest
 
-from ssr_addon.passes import render_passes
+from ssr_addon.blender.render_passes import render_passes
+from ssr_addon.blender.render_setup import decide_render
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 PIXELS_PER_UNIT = 16
 PLANE = 0.9
@@ -223,7 +226,7 @@ def rendered(tmp_path_factory):
     scene.collection.objects.link(camera)
     scene.camera = camera
     before = _snapshot()
-    passes = render_passes(scene, "eevee", samples=1, resolution=(8 * PIXELS_PER_UNIT, 2 * PIXELS_PER_UNIT))
+    passes = render_passes(scene, decide_render(scene, "eevee", samples=1, resolution=(8 * PIXELS_PER_UNIT, 2 * PIXELS_PER_UNIT)))
     return passes, before, _snapshot()
 
 

@@ -6,6 +6,9 @@ import numpy as np
 import pytest
 
 from conftest import SCENES, read_exr
+from synthetic import mirror_image
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 RESOLUTION = "320x180"
 
@@ -14,7 +17,7 @@ RESOLUTION = "320x180"
 def mirror_geometry():
     """Camera matrices of the mirror scene and its marker, read in this process."""
     import runpy
-    from ssr_addon.scene_io import camera_matrices, load_scene
+    from ssr_addon.blender.scene_io import camera_matrices, load_scene
     path = os.path.join(SCENES, "mirror_floor.py")
     scene = load_scene(path)
     view, projection = camera_matrices(scene, 320, 180)
@@ -42,7 +45,7 @@ def test_marker_reflection_lands_on_the_analytic_mirror_image(render_scene, mirr
     ssr = render_scene("mirror_floor", "ssr", "--resolution", RESOLUTION).final()
     none = render_scene("mirror_floor", "none", "--resolution", RESOLUTION).final()
     marker_px = project(marker, view, projection)
-    mirrored_px = project(marker * np.array([1, 1, -1]), view, projection)
+    mirrored_px = project(mirror_image(marker, axis=2), view, projection)
 
     # The projection convention is right: the marker itself is where it should be.
     direct, _ = marker_centroid(np.where(np.arange(180)[:, None, None] < marker_px[1] + 15, none, 0))

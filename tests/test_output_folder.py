@@ -12,6 +12,8 @@ import pytest
 from conftest import REPO, SCENES, run_cli
 from test_cli_errors import error_lines
 
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
+
 SMALL = ("--resolution", "64x36")
 
 
@@ -81,18 +83,19 @@ def test_report_keeps_every_frame_across_resumes_with_the_samples_used(dolly, tm
 
 
 def test_the_scenes_own_samples_render(dolly, monkeypatch):
-    from ssr_addon import passes
-    from ssr_addon.scene_io import load_scene
+    from ssr_addon.blender import render_passes
+    from ssr_addon.blender.render_setup import decide_render
+    from ssr_addon.blender.scene_io import load_scene
     scene = load_scene(str(dolly))
     seen = []
-    real_render_to_exr = passes._render_to_exr
+    real_render_to_exr = render_passes.render_to_exr
 
     def recording(scene, path, changes):
         seen.append(scene.eevee.taa_render_samples)
         return real_render_to_exr(scene, path, changes)
-    monkeypatch.setattr(passes, "_render_to_exr", recording)
+    monkeypatch.setattr(render_passes, "render_to_exr", recording)
     scene.eevee.taa_render_samples = 3
-    assert passes.render_passes(scene, "eevee").samples == 3
+    assert render_passes.render_passes(scene, decide_render(scene, "eevee")).samples == 3
     assert seen == [3]
 
 
@@ -119,7 +122,7 @@ def test_sigterm_leaves_complete_frames_and_no_temporary_files(dolly, tmp_path):
 
 
 def test_report_is_strict_json_even_with_non_finite_numbers(tmp_path):
-    from ssr_addon.outputs import write_json
+    from ssr_addon.batch.outputs import write_json
     write_json(tmp_path / "report.json", {"mean": float("nan"), "frames": [{"ms": float("inf")}]})
     assert strict_json(tmp_path / "report.json") == {"mean": None, "frames": [{"ms": None}]}
 
@@ -127,8 +130,9 @@ def test_report_is_strict_json_even_with_non_finite_numbers(tmp_path):
 def test_an_unreadable_material_is_one_warning_per_run(dolly, tmp_path):
     """Two frames, two objects with the same Toon material: one line in the log and in the report."""
     import bpy
-    from ssr_addon.render_job import RenderRequest, run_render
-    from ssr_addon.scene_io import load_scene
+    from ssr_addon.batch.request import RenderRequest
+    from ssr_addon.batch.run import run_render
+    from ssr_addon.blender.scene_io import load_scene
     scene = load_scene(str(dolly))
     toon = bpy.data.materials.new("toon")
     shader = toon.node_tree.nodes.new("ShaderNodeBsdfToon")

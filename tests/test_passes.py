@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 from conftest import SCENES, metal_floor_under
-from ssr_addon.passes import lamp_world_for_run, render_passes
-from ssr_addon.scene_io import load_scene
+from gpu_harness import passes_lamp_split
+from ssr_addon.blender.lamp_renders import lamp_world_for_run
+from ssr_addon.blender.render_passes import render_passes
+from ssr_addon.blender.render_setup import decide_render
+from ssr_addon.blender.scene_io import load_scene
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 
 def _plane_with_roughness(name, x, wire_roughness):
@@ -98,7 +103,7 @@ def roughness_scene():
 
 
 def test_roughness_aov_follows_every_kind_of_input(roughness_scene):
-    passes = render_passes(roughness_scene, "eevee", samples=1)
+    passes = render_passes(roughness_scene, decide_render(roughness_scene, "eevee", samples=1))
     roughness = passes.roughness
     # The camera sees x in [-1.5, 1.5] and y in [-1, 2]: 20 px per unit, row 0 at y = 2.
     def at(x, y):
@@ -114,28 +119,28 @@ def test_roughness_aov_follows_every_kind_of_input(roughness_scene):
 
 def test_scene_is_exactly_as_before(roughness_scene):
     before = _snapshot(roughness_scene)
-    render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+    render_passes(roughness_scene, decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32)))
     assert _snapshot(roughness_scene) == before
 
 
 def test_every_setting_is_restored_after_an_exception_halfway(roughness_scene, monkeypatch):
     """A failure after the render (every setting changed, AOVs wired) still leaves the scene as it was,
     the output format included (a PNG at 8 bits stayed at 16 bits through the EXR's 32)."""
-    from ssr_addon import passes
+    from ssr_addon.blender import exr_render
     roughness_scene.render.image_settings.file_format = "PNG"
     roughness_scene.render.image_settings.color_depth = "8"
     before = _snapshot(roughness_scene)
 
     def failing_read(path):
         raise RuntimeError("a bug halfway through the frame")
-    monkeypatch.setattr(passes, "read_multilayer_exr", failing_read)
+    monkeypatch.setattr(exr_render, "read_multilayer_exr", failing_read)
     with pytest.raises(RuntimeError, match="halfway"):
-        render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32))
+        render_passes(roughness_scene, decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32)))
     assert _snapshot(roughness_scene) == before
 
 
 def test_passes_have_the_shapes_and_camera_of_the_render(roughness_scene):
-    passes = render_passes(roughness_scene, "eevee", samples=1, resolution=(40, 20))
+    passes = render_passes(roughness_scene, decide_render(roughness_scene, "eevee", samples=1, resolution=(40, 20)))
     assert passes.size == (40, 20)
     assert passes.combined.shape == (20, 40, 4) and passes.normal.shape == (20, 40, 3)
     assert np.isfinite(passes.combined).all()
@@ -148,7 +153,7 @@ def test_passes_have_the_shapes_and_camera_of_the_render(roughness_scene):
 def test_f0_is_the_surfaces_own_at_antialiased_edges(roughness_scene):
     """The pixel filter averages an AOV with the sky around an edge; F0, like roughness, is
     divided by the coverage, so edge pixels read the surface's 0.04, not a darker blend."""
-    passes = render_passes(roughness_scene, "eevee", samples=16)
+    passes = render_passes(roughness_scene, decide_render(roughness_scene, "eevee", samples=16))
     covered = passes.f0.mean(-1) > 1e-4
     padded = np.pad(covered, 1, constant_values=False)
     beside_sky = ~(padded[:-2, 1:-1] & padded[2:, 1:-1] & padded[1:-1, :-2] & padded[1:-1, 2:])
@@ -165,12 +170,15 @@ def test_a_run_keeps_one_black_world_and_removes_it(roughness_scene):
     lamp.location = (0, 0.5, 2)
     roughness_scene.collection.objects.link(lamp)
     worlds = set(bpy.data.worlds)
-    alone = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
+    alone = render_passes(roughness_scene,
+                          decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render"))
     assert set(bpy.data.worlds) == worlds
     with lamp_world_for_run():
-        first = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
+        first = render_passes(roughness_scene,
+                              decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render"))
         made = set(bpy.data.worlds) - worlds
-        second = render_passes(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
+        second = render_passes(roughness_scene,
+                               decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render"))
         assert len(made) == 1 and set(bpy.data.worlds) - worlds == made
     assert set(bpy.data.worlds) == worlds
     assert alone.specular_direct.max() > 0, "the lamp must light the planes"
@@ -178,7 +186,7 @@ def test_a_run_keeps_one_black_world_and_removes_it(roughness_scene):
     np.testing.assert_allclose(second.specular_direct, alone.specular_direct, atol=1e-5)
 
 
-def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone():
+def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone(gpu_backend):
     """A scene with EEVEE's ray tracing on keeps it: its screen-space diffuse light brightens
     the corridor's walls (lit by the emissive stripes across it), where the add-on used to
     switch it off. The lamp-only render still holds lamps alone: ray tracing there would add
@@ -188,19 +196,24 @@ def test_the_scenes_own_ray_tracing_is_kept_and_lamps_stay_alone():
     lamp.location = (0, 4, 2.5)
     lamp.data.energy = 200
     scene.collection.objects.link(lamp)
-    as_authored = render_passes(scene, "eevee", samples=4, resolution=(80, 45))
+    as_authored = render_passes(scene, decide_render(scene, "eevee", samples=4, resolution=(80, 45)))
     scene.eevee.use_raytracing = True
-    traced = render_passes(scene, "eevee", samples=4, resolution=(80, 45))
+    traced = render_passes(scene, decide_render(scene, "eevee", samples=4, resolution=(80, 45)))
     assert scene.eevee.use_raytracing
 
-    def diffuse_level(passes):
+    (authored_direct, authored_indirect), (traced_direct, traced_indirect) = map(passes_lamp_split,
+                                                                                 (as_authored, traced))
+
+    def diffuse_level(passes, direct, indirect):
         rough = np.abs(passes.roughness - 0.7) < 0.01  # the side walls (the stripes are 1.0)
-        specular = passes.specular_color * (passes.specular_indirect + passes.specular_direct)
+        specular = passes.specular_color * (indirect + direct)
         return float((passes.combined[..., :3] - specular)[rough].mean())
-    print(f"walls: {diffuse_level(as_authored):.4f} as authored, {diffuse_level(traced):.4f} ray traced")
-    assert diffuse_level(traced) >= 1.1 * diffuse_level(as_authored)
-    assert as_authored.specular_direct.max() > 0, "the lamp must light the floor"
-    np.testing.assert_allclose(traced.specular_direct, as_authored.specular_direct, atol=1e-4, rtol=0.02)
+    authored_level = diffuse_level(as_authored, authored_direct, authored_indirect)
+    traced_level = diffuse_level(traced, traced_direct, traced_indirect)
+    print(f"walls: {authored_level:.4f} as authored, {traced_level:.4f} ray traced")
+    assert traced_level >= 1.1 * authored_level
+    assert authored_direct.max() > 0, "the lamp must light the floor"
+    np.testing.assert_allclose(traced_direct, authored_direct, atol=1e-4, rtol=0.02)
 
 
 def _sun_behind_a_wall():
@@ -217,10 +230,10 @@ def test_the_unshadowed_lamp_split_matches_the_exact_split_for_one_lamp():
     and shadows them with the main render's Shadow pass: for one lamp that is the exact split's
     lamp light, within 2 % on the floor, though the wall's shadow takes much of it away."""
     scene, wall = _sun_behind_a_wall()
-    exact = render_passes(scene, "eevee", samples=4, lamp_split="render")
-    unshadowed = render_passes(scene, "eevee", samples=4, lamp_split="unshadowed")
+    exact = render_passes(scene, decide_render(scene, "eevee", samples=4, lamp_split="render"))
+    unshadowed = render_passes(scene, decide_render(scene, "eevee", samples=4, lamp_split="unshadowed"))
     wall.hide_render = True
-    unblocked = render_passes(scene, "eevee", samples=4, lamp_split="render")
+    unblocked = render_passes(scene, decide_render(scene, "eevee", samples=4, lamp_split="render"))
     floor = (np.abs(exact.roughness - 0.3) < 0.01) & (np.abs(unblocked.roughness - 0.3) < 0.01)
     lamp_light = exact.specular_direct[floor].sum()
     shadowed_share = 1 - lamp_light / unblocked.specular_direct[floor].sum()
@@ -234,7 +247,8 @@ def test_ssr_renders_over_eevees_light_probe_ray_tracing(gpu_backend, tmp_path):
     """The render SSR composites over lights diffuse surfaces as EEVEE's own ray tracing does
     (its horizon scan occludes light near geometry). Without ray tracing, the scene's default, the
     rolling ball's walls and boxes come out tens of percent brighter than Cycles' and EEVEE's."""
-    from ssr_addon.render_job import RenderRequest, render_frame
+    from ssr_addon.batch.frame import render_frame
+    from ssr_addon.batch.request import RenderRequest
     scene = load_scene(os.path.join(SCENES, "rolling_ball.py"))
     assert not scene.eevee.use_raytracing
 
@@ -243,12 +257,12 @@ def test_ssr_renders_over_eevees_light_probe_ray_tracing(gpu_backend, tmp_path):
                                                       samples=4))
         return images
     ssr = image("ssr")
-    passes = ssr["passes"]
+    passes = ssr.passes
     diffuse = (passes.specular_color.mean(-1) < 0.1) & (passes.depth < 1e9)  # SSR leaves these alone
     assert diffuse.sum() > 100
 
     def brightness(images):
-        return float(images["final"][..., :3][diffuse].mean())
+        return float(images.final[..., :3][diffuse].mean())
     eevee_rt, no_raytracing = brightness(image("eevee-rt")), brightness(image("none"))
     print(f"diffuse pixels: ssr {brightness(ssr):.4f}, eevee-rt {eevee_rt:.4f}, no ray tracing {no_raytracing:.4f}")
     assert no_raytracing > 1.2 * eevee_rt, "the scene must show the difference"

@@ -5,8 +5,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from ssr_addon.chain import ray_budget
-from ssr_addon.params import ChainSettings
+from ssr_addon.core.ray_budget import ray_budget
+from ssr_addon.core.settings import ChainSettings
 
 CLIP_END = 100.0
 

@@ -6,8 +6,8 @@ import pytest
 from gpu_harness import run_synthetic_chain
 from oracles import ggx_normal_cdf, view_positions, visible_normal_pdf
 from synthetic import corridor, facing_plane
-from ssr_addon.params import ChainSettings
-from ssr_addon.shaders import LOBE_TAIL
+from ssr_addon.core.settings import ChainSettings
+from ssr_addon.core.gpu_passes import LOBE_TAIL
 
 ONE_RAY_PER_PIXEL = dict(half_resolution=False, use_temporal=False, resolve_samples=1)
 

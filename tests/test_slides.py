@@ -9,16 +9,18 @@ import numpy as np
 import pytest
 
 from PIL import Image
-from conftest import run_cli
-from ssr_addon.slides import QUICK_RESOLUTION
-from ssr_addon.slides.page import caption_text
-from ssr_addon.slides.sections import SECTIONS
+from conftest import run_lab
+from lab.slides import QUICK_RESOLUTION
+from lab.slides.page import caption_text
+from lab.slides.sections import SECTIONS
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 
 @pytest.fixture(scope="module")
 def slides(tmp_path_factory):
     out = tmp_path_factory.mktemp("slides")
-    run_cli("slides", "--out", out, "--quick")
+    run_lab("slides", "--out", out, "--quick")
     return out, json.loads((out / "slides.json").read_text()), (out / "index.html").read_text()
 
 
@@ -90,7 +92,8 @@ def test_each_slide_shows_what_its_caption_says(slides):
     assert rays["deck_expensive_share"] <= 0.21
     assert rays["balanced_expensive_share"] >= rays["budget"]
     sparse = numbers["sparse_ray_tracing"]
-    assert sparse["half_trace_ms"] < sparse["full_trace_ms"] and sparse["half_gap"] < sparse["half_resolve_gap"]
+    # A quarter of the rays (the work, not its time: timings belong in the benchmarks).
+    assert sparse["half_rays"] < 0.3 * sparse["full_rays"] and sparse["half_gap"] < sparse["half_resolve_gap"]
     assert numbers["limits"]["hidden_flip"] < numbers["limits"]["hidden_fallback_flip"]
 
 
@@ -104,7 +107,7 @@ def test_some_sections_rerun_replace_their_own_and_keep_the_others(slides, tmp_p
     for section in earlier["sections"]:
         section["title"] = "kept from the earlier run"
     (tmp_path / "slides.json").write_text(json.dumps(earlier))
-    run_cli("slides", "--out", tmp_path, "--quick", "--sections", "basic_algorithm")
+    run_lab("slides", "--out", tmp_path, "--quick", "--sections", "basic_algorithm")
     merged = json.loads((tmp_path / "slides.json").read_text())
     assert [section["id"] for section in merged["sections"]] == [section["id"] for section in report["sections"]]
     for section in merged["sections"]:
@@ -116,7 +119,7 @@ def test_some_sections_rerun_replace_their_own_and_keep_the_others(slides, tmp_p
 @pytest.mark.parametrize("arguments, named", [(("--resolution", "64by36"), "64by36"),
                                               (("--sections", "temporal_filter", "hizz"), "hizz")])
 def test_bad_slides_input_gets_one_clear_line(tmp_path, arguments, named):
-    result = run_cli("slides", "--out", tmp_path / "out", *arguments, check=False)
+    result = run_lab("slides", "--out", tmp_path / "out", *arguments, check=False)
     lines = [line for line in result.stderr.splitlines() if line.strip() and "EGL" not in line]
     assert result.returncode == 2
     assert len(lines) == 1 and lines[0].startswith("error:") and named in lines[0], result.stderr

@@ -9,7 +9,7 @@ import numpy as np
 
 from gpu_harness import run_synthetic_chain
 from synthetic import corridor
-from ssr_addon.params import ChainSettings
+from ssr_addon.core.settings import ChainSettings
 
 # Mirror rays, one resolve sample, no spatial filter: a pixel's reflection is its own ray's hit.
 # 8 iterations: every pixel of each 2x2 quad starts a ray twice, averaged by the still.

@@ -2,7 +2,7 @@
 
 Each case renders a short animation through the CLI (frames in order, so the
 temporal history builds up) at a small resolution, and is measured with the
-bench's functions (ssr_addon.bench), which chart the same numbers; the limits
+bench's functions (lab.bench), which chart the same numbers; the limits
 asserted here are the bench's constants. The probe/world fallback is the
 Combined layer of the same render (EEVEE without SSR), the reference a Cycles
 render per frame where something moves, of the first frame otherwise.
@@ -11,8 +11,10 @@ import numpy as np
 import pytest
 
 from conftest import rgb
-from ssr_addon import bench
-from ssr_addon.params import ChainSettings
+from lab import bench
+from ssr_addon.core.settings import ChainSettings
+
+pytestmark = [pytest.mark.blender, pytest.mark.slow]
 
 RESOLUTION = "160x90"
 FRAMES = list(range(bench.STABILITY_FRAMES[0], bench.STABILITY_FRAMES[1] + 1))

@@ -4,10 +4,10 @@ import types
 
 import numpy as np
 
-from ssr_addon import gpu_backend
-from ssr_addon.bench import contenders as bench_contenders
-from ssr_addon.gpu_backend import StageTimer
-from ssr_addon.params import ChainSettings
+from lab.bench import contenders as bench_contenders
+from ssr_addon.core import gpu_backend
+from ssr_addon.core.gpu_backend import StageTimer
+from ssr_addon.core.settings import ChainSettings
 
 
 def test_a_render_timer_never_waits_for_the_gpu_and_a_benchmark_timer_waits_after_each_stage(monkeypatch):
@@ -32,7 +32,7 @@ def test_bench_frames_alternate_between_stage_timing_and_whole_frames(monkeypatc
         apart = request.time_stages
         timer = types.SimpleNamespace(milliseconds={"render": 100.0 + len(requests), "trace": 5.0 if apart else 1.0,
                                                     "readback": 1.0 if apart else 4.0})
-        return {"final": np.zeros((2, 2, 4))}, timer
+        return types.SimpleNamespace(final=np.zeros((2, 2, 4))), timer
 
     monkeypatch.setattr(bench_contenders, "render_frame", fake_render_frame)
     scene = types.SimpleNamespace(frame_current=1)

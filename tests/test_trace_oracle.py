@@ -4,8 +4,8 @@ import pytest
 
 from gpu_harness import CLIP_END, CLIP_START, run_synthetic_chain
 from oracles import march_linear, march_pixel_walk, reduction_pyramid, trace_mirror_rays
-from synthetic import corridor, perspective, pixel_rays, raycast
-from ssr_addon.params import ChainSettings
+from synthetic import corridor, mirror_image, perspective, pixel_rays, raycast
+from ssr_addon.core.settings import ChainSettings
 
 # Mirror rays, one per pixel, no temporal accumulation: the tracer alone decides the hits.
 MIRROR = dict(use_importance_sampling=False, half_resolution=False, use_temporal=False,
@@ -74,11 +74,13 @@ def test_hiz_sees_one_pixel_thin_geometry_a_coarse_march_steps_over(gpu_backend)
 def test_pyramids_match_numpy_reductions(gpu_backend, reduction):
     """The Hi-Z pyramid is the min of the texels each cell covers, the colour pyramid their
     mean, level by level to 1x1, each level where its rectangle says in one atlas."""
-    from ssr_addon.chain import build_pyramid
-    from ssr_addon.gpu_backend import TexturePool, download, upload
+    from ssr_addon.core import gpu_passes
+    from ssr_addon.core.gpu_backend import TexturePool, download, upload
+    from ssr_addon.core.pyramids import build_pyramid
     channels = 1 if reduction == "hiz_downsample" else 4
     image = np.random.default_rng(1).uniform(1, 50, (37, 61, channels)).astype(np.float32)  # odd sizes on purpose
-    atlas, rects = build_pyramid(upload(image), reduction, TexturePool(), "pyramid")
+    atlas, rects = build_pyramid(upload(image), getattr(gpu_passes, reduction.upper()), gpu_passes.PYRAMID_PACK,
+                                 TexturePool())
     atlas_gl = download(atlas, channels)[::-1]
     expected = reduction_pyramid(image[::-1], np.nanmin if channels == 1 else np.nanmean)
     assert len(rects) == len(expected)
@@ -96,8 +98,7 @@ def test_mirror_floor_hits_land_on_the_mirror_image(gpu_backend):
         floor = (hits[..., 3] > 0) & np.all(np.isclose(normal, (0, 1, 0)), axis=-1)
         assert floor.sum() > 200
         position = rays[floor] * depth[floor][:, None]
-        direction = position / np.linalg.norm(position, axis=-1, keepdims=True)
-        direction[:, 1] *= -1
+        direction = mirror_image(position / np.linalg.norm(position, axis=-1, keepdims=True), axis=1)
         hit = position + direction * hits[floor][:, 2:3]
         clip = np.c_[hit, np.ones(len(hit))] @ projection.T
         uv = clip[:, :2] / clip[:, 3:4] * 0.5 + 0.5

@@ -1,7 +1,8 @@
-"""The add-on's user interface: panels, the viewport overlay and live SSR."""
-from . import live, overlay, panels
+"""The add-on's user interface: the scene settings, operators, panels, the viewport overlay and
+live SSR, registered in order (Node Wrangler style) and unregistered in reverse."""
+from . import live, operators, overlay, panels, properties
 
-modules = (panels, overlay, live)
+modules = (properties, operators, panels, overlay, live)
 
 
 def register():

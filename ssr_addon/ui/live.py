@@ -1,4 +1,4 @@
-"""The SSR tab's "Live" toggle: live SSR in one 3D View (live_view.LiveSession).
+"""The SSR tab's "Live" toggle: live SSR in one 3D View (live_session.LiveSession).
 
 A modal operator owns the session: its window timer ticks it, Esc or the toggle
 stops it. A POST_PIXEL handler draws the session's image over its region. A
@@ -10,9 +10,9 @@ import bpy
 import gpu
 from gpu_extras.presets import draw_texture_2d
 
-from ..errors import SSRError
-from ..live_view import TICK_INTERVAL_S, LiveSession
-from ..viewport_capture import window_region
+from ..blender.viewport_capture import window_region
+from ..core.errors import SSRError
+from .live_session import TICK_INTERVAL_S, LiveSession
 
 _session = None
 _timer = None          # (window manager, timer) of the running session
@@ -33,7 +33,7 @@ def draw_session(session):
 
 
 def draw_image(texture, width, height):
-    """Draw the display-encoded TEXTURE (live_view.LiveSession.texture) over WIDTH x HEIGHT pixels
+    """Draw the display-encoded TEXTURE (live_session.LiveSession.texture) over WIDTH x HEIGHT pixels
     of the bound framebuffer."""
     gpu.state.blend_set("NONE")
     draw_texture_2d(texture, (0, 0), width, height)

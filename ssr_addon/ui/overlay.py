@@ -9,7 +9,7 @@ import gpu
 from bpy_extras.view3d_utils import location_3d_to_region_2d
 from gpu_extras.presets import draw_texture_2d
 
-from ..compositor import RESULT_IMAGE
+from ..blender.result_image import RESULT_IMAGE
 
 THUMBNAIL_FRACTION = 0.3  # of the region's width, outside camera view
 

@@ -6,17 +6,16 @@ The settings sub-panels are generated from the schema's groups
 """
 import bpy
 
-from ..params import PRESETS
+from ..core.settings import PRESETS
 from . import live
-from ..settings import ENABLE_FIELD, grouped_fields
+from .properties import ENABLE_FIELD, grouped_fields
 
 
 class SSRRenderPanelMixin:
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
     bl_context = "render"
-    # EEVEE is BLENDER_EEVEE_NEXT in Blender 4.2 to 4.5.
-    COMPAT_ENGINES = {"BLENDER_EEVEE", "BLENDER_EEVEE_NEXT", "CYCLES"}
+    COMPAT_ENGINES = {"BLENDER_EEVEE", "CYCLES"}
 
     @classmethod
     def unavailable_reason(cls, scene):

@@ -1,0 +1,36 @@
+"""The generated blocks of the measurements page (docs/measurements.md): each lab command that
+measures rewrites its own block, between <!-- NAME:start --> and <!-- NAME:end -->."""
+import os
+
+from ssr_addon.batch.outputs import written_together
+from ssr_addon.core.errors import SSRError
+
+MEASUREMENTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs", "measurements.md")
+
+
+def require_page(path):
+    """Refuse, in one line, a page to rewrite that does not exist."""
+    if path and not os.path.isfile(path):
+        raise SSRError(f"--page {path}: no such file")
+
+
+def rewrite_block(page, name, body, heading):
+    """Replace PAGE's generated block NAME with BODY, or append it under HEADING if absent;
+    the file is replaced whole or not at all."""
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    with open(page, encoding="utf-8") as stream:
+        text = stream.read()
+    block = f"{start}\n{body}\n{end}"
+    if start in text and end in text:
+        head, _, rest = text.partition(start)
+        _, _, tail = rest.partition(end)
+        text = head + block + tail
+    else:
+        text = text.rstrip("\n") + f"\n\n## {heading}\n\n{block}\n"
+    with written_together([page]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
+        stream.write(text)
+
+
+def page_link(page, path):
+    """PATH (from the repository root) as the markdown page PAGE links to it."""
+    return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(page)))

@@ -1,0 +1,92 @@
+"""Where the error of `ssr balanced` comes from: the chain, EEVEE's frame, or screen space itself.
+
+    python -m lab error-budget [--scenes NAME ...] [--frame N] [--resolution WxH] [--page docs/measurements.md]
+
+For each bench scene, a still of the frame the bench scores (`make bench`: frame 8), FLIP on the reflective
+pixels against the bench's cached Cycles reference, beside EEVEE's ray tracing:
+- ours: the balanced chain over EEVEE's passes, as the bench renders it;
+- correct screen space: EEVEE's frame with the reflection a correct screen-space method
+  would show (lab.ideal_reflection: exact rays, EEVEE's Combined where the
+  camera sees their hits, EEVEE's probe/world reflection elsewhere). No screen-space
+  reflection over EEVEE's frame does better, but by errors that cancel EEVEE's;
+- correct reflections: EEVEE's frame with Cycles' own reflections in place of EEVEE's
+  probe/world reflection: what a perfect reflection method would reach over EEVEE's lighting;
+- ours on Cycles' passes: the same chain over a Cycles render (its lighting, no EEVEE in it).
+The "Right before new" issue's goal is a ratio to EEVEE's ray tracing of at most 0.8.
+"""
+import numpy as np
+
+from ssr_addon.batch.cli import ArgumentParser
+from ssr_addon.batch.frame import render_frame
+from ssr_addon.batch.request import RenderRequest, parse_resolution
+from ssr_addon.blender.lamp_renders import lamp_world_for_run
+from ssr_addon.blender.overrides import TemporaryChanges
+from ssr_addon.blender.scene_io import load_scene
+from .bench import DEFAULT_CACHE, DEFAULT_SCENES, EEVEE_SAMPLES, REFERENCE_SAMPLES, flip_error, render_reference
+from .bench.scenes import resolve_scene
+from .docs import require_page, rewrite_block
+from .ideal_reflection import ideal_screen_space, with_reflection
+
+GOAL = 0.8
+CYCLES_SAMPLES = 512
+CYCLES_SEED = 7  # not one of the reference's seeds, so its noise is not the reference's
+COLUMNS = ("eevee-rt", "ours", "correct screen space", "correct reflections", "ours on Cycles' passes")
+
+
+def measure(scene_name, frame_number, resolution, cache):
+    """{column: FLIP on the reflective pixels} of one scene's FRAME_NUMBER-th frame."""
+    path = resolve_scene(scene_name)
+    scene = load_scene(path)
+    frame = scene.frame_current + frame_number - 1
+    reference = render_reference(scene, path, resolution, REFERENCE_SAMPLES, frame, cache)
+    scene.frame_set(frame)
+    images = {}
+    with lamp_world_for_run():
+        def render(method, engine="eevee", samples=EEVEE_SAMPLES):
+            return render_frame(scene, RenderRequest(out_dir="", method=method, engine=engine,
+                                                     resolution=resolution, samples=samples))[0]
+        images["eevee-rt"] = render("eevee-rt").final
+        ours = render("ssr")
+        images["ours"] = ours.final
+        with TemporaryChanges() as changes:
+            changes.set(scene.cycles, "seed", CYCLES_SEED)
+            on_cycles = render("ssr", "cycles", CYCLES_SAMPLES)
+    images["ours on Cycles' passes"] = on_cycles.final
+    eevee, cycles = ours.passes, on_cycles.passes
+    premultiplied, confidence = ideal_screen_space(scene, eevee)
+    images["correct screen space"] = with_reflection(eevee, eevee.specular_color * premultiplied, confidence)
+    images["correct reflections"] = with_reflection(eevee, cycles.specular_color * cycles.specular_indirect,
+                                                    np.ones(eevee.depth.shape, np.float32))
+    return {column: flip_error(reference.image, images[column][..., :3], reference.mask) for column in COLUMNS}
+
+
+def table(rows):
+    lines = ["| scene | " + " | ".join(COLUMNS) + " |", "|---" + "|---:" * len(COLUMNS) + "|"]
+    for name, scores in rows.items():
+        baseline = scores["eevee-rt"]
+        cells = [f"{scores[column]:.4f}" + ("" if column == "eevee-rt" else f" ({scores[column] / baseline:.2f})")
+                 for column in COLUMNS]
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def main(argv):
+    parser = ArgumentParser(prog="python -m lab error-budget", description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=list(DEFAULT_SCENES))
+    parser.add_argument("--frame", type=int, default=8, help="which frame of the scene's animation, from 1")
+    parser.add_argument("--resolution", type=parse_resolution, default=(160, 90))
+    parser.add_argument("--cache", default=DEFAULT_CACHE, help="folder of cached Cycles references (the bench's)")
+    parser.add_argument("--page", help="rewrite the error-budget block of this markdown page")
+    arguments = parser.parse_args(argv)
+    require_page(arguments.page)
+    rows = {name: measure(name, arguments.frame, arguments.resolution, arguments.cache) for name in arguments.scenes}
+    width, height = arguments.resolution
+    text = "\n".join([
+        f"Latest run: `python -m lab error-budget --scenes {' '.join(arguments.scenes)} "
+        f"--frame {arguments.frame} --resolution {width}x{height}{' --page docs/measurements.md' if arguments.page else ''}`"
+        f": FLIP on the reflective pixels of a still of frame {arguments.frame} against the bench's Cycles reference ({REFERENCE_SAMPLES} samples); in brackets "
+        f"as a multiple of EEVEE's ray tracing (the goal: at most {GOAL}). Ours on Cycles' passes: "
+        f"{CYCLES_SAMPLES} samples.", "", *table(rows)])
+    print(text)
+    if arguments.page:
+        rewrite_block(arguments.page, "error-budget", text, "Where the error comes from")

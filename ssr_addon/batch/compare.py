@@ -1,0 +1,52 @@
+"""The comparison modes: a frame with SSR, one reflection cubemap, a planar reflection or no
+reflections (blender.baselines), one at a time or side by side with the cost of each."""
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from ..blender.baselines import COMPARISON_MODES, apply_baseline
+from ..blender.comparison_sheet import comparison_sheet
+from ..blender.overrides import TemporaryChanges
+from ..blender.scene_io import require_camera
+from ..core.errors import SSRError
+from .frame import render_frame
+
+# The render method of each comparison mode, rendered with the mode's baseline applied:
+# EEVEE uses plane probes only with its screen-trace ray tracing.
+MODE_METHODS = {"SSR": "ssr", "CUBEMAP": "none", "PLANAR": "eevee-rt", "NONE": "none"}
+
+
+def render_mode(scene, mode, request, state=None, probe_object=None, mirror_object=None):
+    """Render the scene's current frame in comparison MODE (COMPARISON_MODES); returns render_frame's result.
+
+    STATE (a chain.ChainState) carries SSR's temporal history between the frames of an animation;
+    probe_object and mirror_object choose the baselines' cubemap centre and mirror plane.
+    """
+    require_camera(scene)
+    with TemporaryChanges() as changes:
+        apply_baseline(scene, mode.lower(), changes, probe_object=probe_object, mirror_object=mirror_object)
+        return render_frame(scene, replace(request, method=MODE_METHODS[mode]), state)
+
+
+def compare_modes(scene, request, probe_object=None, mirror_object=None):
+    """The current frame in every comparison mode, side by side: (sheet rgba, label per mode, problems).
+
+    A mode the scene cannot show (no mirror plane...) gets a blank tile and a line in problems.
+    """
+    require_camera(scene)
+    tiles, problems = [], []
+    for mode, label, _ in COMPARISON_MODES:
+        started = time.perf_counter()
+        try:
+            images, _ = render_mode(scene, mode, request, probe_object=probe_object, mirror_object=mirror_object)
+        except SSRError as error:
+            problems.append(f"{label}: {error}")
+            tiles.append(([label, "n/a"], None))
+            continue
+        tiles.append(([label, f"{time.perf_counter() - started:.1f} s"], images.final))
+    shape = next((rgba.shape for _, rgba in tiles if rgba is not None), None)
+    if shape is None:
+        raise SSRError("; ".join(problems))
+    tiles = [(lines, np.zeros(shape, np.float32) if rgba is None else rgba) for lines, rgba in tiles]
+    return comparison_sheet(tiles), [" ".join(lines) for lines, _ in tiles], problems

@@ -1,0 +1,91 @@
+"""Writing frames: every file goes to a temporary name first and is renamed when complete,
+so an interrupted run leaves only whole files behind."""
+import json
+import math
+import os
+from contextlib import contextmanager
+
+import numpy as np
+import OpenImageIO as oiio
+
+from ..core.errors import SSRError
+
+
+def _partial_name(path):
+    folder, name = os.path.split(path)
+    return os.path.join(folder, f".{name}.partial")
+
+
+def _discard(partial):
+    if os.path.exists(partial):
+        os.remove(partial)
+
+
+@contextmanager
+def written_together(paths):
+    """Yield temporary names for PATHS; when the block succeeds rename them, in order, to
+    PATHS; when it fails remove them. A reader never sees a half-written file."""
+    partials = [_partial_name(path) for path in paths]
+    try:
+        yield partials
+        for partial, path in zip(partials, paths):
+            os.replace(partial, path)
+    finally:
+        for partial in partials:
+            _discard(partial)
+
+
+def write_exr(path, channels):
+    """Write {channel name: (H, W) float32} as one single-part float EXR, channels in the given order.
+
+    Writes PATH directly: callers go through `written_together`.
+
+    Names of the form "Layer.C" make it a layered EXR that Blender and
+    compositing packages read as passes.
+    """
+    names = list(channels)
+    pixels = np.stack([np.asarray(channels[name], dtype=np.float32) for name in names], axis=-1)
+    height, width = pixels.shape[:2]
+    spec = oiio.ImageSpec(width, height, len(names), "float")
+    spec.channelnames = tuple(names)
+    spec.attribute("compression", "zip")
+    output = oiio.ImageOutput.create("openexr")
+    if output is None or not output.open(path, spec):
+        raise SSRError(f"cannot write {path}: {oiio.geterror() or (output and output.geterror())}")
+    written = output.write_image(np.ascontiguousarray(pixels))
+    output.close()
+    if not written:
+        raise SSRError(f"cannot write {path}: {output.geterror()}")
+
+
+def write_rgba_exr(path, rgba):
+    write_exr(path, {name: rgba[..., index] for index, name in enumerate("RGBA")})
+
+
+def write_json(path, data):
+    """Strict JSON (readable by any parser): a NaN or infinite number is written as null."""
+    with written_together([path]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
+        json.dump(_finite(data), stream, indent=2, allow_nan=False)
+        stream.write("\n")
+
+
+def _finite(value):
+    if isinstance(value, dict):
+        return {key: _finite(item) for key, item in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_finite(item) for item in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def prepare_output_folder(folder):
+    try:
+        os.makedirs(folder, exist_ok=True)
+    except OSError as error:
+        raise SSRError(f"cannot create output folder {folder}: {error.strerror}") from None
+    if not os.access(folder, os.W_OK):
+        raise SSRError(f"output folder {folder} is not writable")
+    for name in os.listdir(folder):  # leftovers of an interrupted run
+        if name.startswith(".") and name.endswith(".partial"):
+            os.remove(os.path.join(folder, name))

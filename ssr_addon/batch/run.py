@@ -1,0 +1,169 @@
+"""The frame loop: every requested frame of a scene rendered in order with temporal history,
+written whole, resumable, with progress and a report (report.json)."""
+import ctypes
+import ctypes.util
+import os
+
+import bpy
+
+from ..blender.lamp_renders import lamp_world_for_run
+from ..blender.render_setup import render_samples, render_size
+from ..blender.scene_io import require_camera, require_square_pixels
+from ..core.chain import ChainState
+from ..core.errors import SSRError
+from ..core.gpu_backend import describe_gpu
+from .frame import render_frame, write_frame
+from .outputs import prepare_output_folder, write_json
+from .progress_bar import FrameProgress
+from .request import frame_numbers
+from .run_report import REPORT_NAME, claim_folder, fingerprint, scene_identity
+
+# Frames re-rendered (not written) before the first missing frame of a resumed run, so
+# its temporal history is as warm as an uninterrupted run's (the filter averages ~10).
+# The frame sequence draws a frame's random numbers from its number alone, so the
+# re-rendered frames trace the same rays as an uninterrupted run did.
+RESUME_WARMUP_FRAMES = 8
+
+
+def return_large_buffers_to_the_system():
+    """Serve every allocation over 1 MiB with its own mapping (glibc), freed back at once.
+
+    Each frame allocates and frees tens of full-resolution buffers; glibc's
+    adaptive threshold otherwise moves them onto the heap after the first free,
+    where fragmentation grows resident memory ~10 MiB a frame at 1600x900
+    (python -m lab memory).
+    """
+    libc_name = ctypes.util.find_library("c")
+    if libc_name and hasattr(ctypes.CDLL(libc_name), "mallopt"):
+        m_mmap_threshold = -3
+        ctypes.CDLL(libc_name).mallopt(m_mmap_threshold, 1 << 20)
+
+
+class RenderRun:
+    """One run of REQUEST over SCENE's frames into request.out_dir, carrying temporal history.
+
+    Made before anything renders: it checks the scene and claims the output
+    folder (run_report: resume a matching run, refuse a different one).
+    `frames()` renders and writes the frames one at a time, yielding each
+    (frame, images) once written, so a modal operator can step it; the report
+    (also report.json, rewritten after every frame) is in `report`.
+    RENDER(scene, request, state) renders one frame (default render_frame; an
+    operator's applies a comparison baseline). UNSAVED_CHANGES: the scene file on
+    disk is not what renders, so the run can never be resumed.
+    """
+
+    def __init__(self, scene, scene_path, request, log=print, progress_stream=None, render=None,
+                 unsaved_changes=False):
+        require_camera(scene)
+        require_square_pixels(scene)
+        self.scene, self.request, self.log, self.render = scene, request, log, render or render_frame
+        self.progress_stream = progress_stream
+        self.frame_list = frame_numbers(scene, request.frames)
+        prepare_output_folder(request.out_dir)
+        return_large_buffers_to_the_system()
+        self.report_path = os.path.join(request.out_dir, REPORT_NAME)
+        samples = render_samples(scene, request.engine, request.samples)
+        identity = fingerprint(scene_identity(scene_path, unsaved_changes), request,
+                               render_size(scene, request.resolution), samples)
+        kept = claim_folder(request.out_dir, identity, self.frame_list, request.overwrite)
+        self.todo = [f for f in self.frame_list if f not in kept]
+        self.report = {
+            "fingerprint": identity,
+            "scene": scene_path, "method": request.method, "engine": request.engine, "samples": samples,
+            "blender": bpy.app.version_string, "gpu": None,
+            "frames": [entry for _, entry in sorted(kept.items())],
+            "failed_frames": [],
+        }
+
+    def frames(self):
+        request = self.request
+        if not self.todo:
+            self.log(f"all {len(self.frame_list)} frames are already complete in {request.out_dir}")
+            return
+        first_missing = self.todo[0]
+        warmup = [f for f in self.frame_list if first_missing - RESUME_WARMUP_FRAMES <= f < first_missing] \
+            if request.method == "ssr" and request.settings.use_temporal else []
+        if len(self.todo) < len(self.frame_list):
+            self.log(f"resuming at frame {first_missing}: {len(self.frame_list) - len(self.todo)} complete frames "
+                     f"kept, history re-warmed over {len(warmup)} frames")
+        # One frame is a still (accumulated until converged); a range is an animation whose
+        # history carries from frame to frame, reset on a jump in the range or a camera cut.
+        state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
+        with lamp_world_for_run():
+            yield from self._render_frames(warmup, first_missing, state)
+        _summarise(self.report, self.log)
+        write_json(self.report_path, self.report)
+        failed = self.report["failed_frames"]
+        if failed:
+            raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
+
+    def _render_frames(self, warmup, first_missing, state):
+        request, scene = self.request, self.scene
+        warned = set()
+        progress = None  # started at the first written frame, so warm-up does not skew the ETA
+        for frame in warmup + self.todo:
+            scene.frame_set(frame)
+            state.begin_frame(frame, scene.camera.name if scene.camera else None)
+            if frame == first_missing:
+                progress = FrameProgress(len(self.todo), self.progress_stream)
+            try:
+                images, timer = self.render(scene, request, state)
+                self._warn_once(images.passes, warned)
+                if frame in warmup:
+                    continue
+                write_frame(request.out_dir, frame, images, scene, request.file_prefix)
+                timer.lap("write")
+            except SSRError as error:
+                if request.on_error == "stop" or frame in warmup:
+                    raise
+                self.log(f"frame {frame} failed: {error}; going on (--on-error skip)")
+                self.report["failed_frames"].append({"frame": frame, "error": str(error)})
+                state.reset_history()
+                progress.frame_done(frame, "failed")
+                write_json(self.report_path, self.report)
+                continue
+            self._record(frame, images, timer, progress)
+            yield frame, images
+
+    def _warn_once(self, passes, warned):
+        """The material warnings of the passes, each logged once per run and kept in the report."""
+        for warning in passes.material_warnings:
+            if warning not in warned:
+                warned.add(warning)
+                self.log(f"warning: {warning}")
+                self.report.setdefault("warnings", []).append(warning)
+
+    def _record(self, frame, images, timer, progress):
+        report = self.report
+        if report["gpu"] is None and self.request.method == "ssr":
+            report["gpu"] = describe_gpu()
+        height, width = images.final.shape[:2]
+        report["resolution"] = [width, height]
+        stages = {stage: round(ms, 3) for stage, ms in timer.milliseconds.items()}
+        own_ms = sum(ms for stage, ms in stages.items() if stage != "render")
+        report["frames"].append({"frame": frame, "stages_ms": stages, "total_ms": round(sum(stages.values()), 3),
+                                 "render_ms": stages["render"], "addon_ms": round(own_ms, 3),
+                                 **images.stats})
+        report["frames"].sort(key=lambda entry: entry["frame"])
+        write_json(self.report_path, report)
+        progress.frame_done(frame, f"render {stages['render'] / 1000:.1f} s + add-on {own_ms / 1000:.2f} s")
+
+
+def run_render(scene, scene_path, request, log=print, progress_stream=None):
+    """Render every requested frame into request.out_dir (RenderRun); returns the report."""
+    run = RenderRun(scene, scene_path, request, log, progress_stream)
+    for _ in run.frames():
+        pass
+    return run.report
+
+
+def _summarise(report, log):
+    """The add-on's own cost per frame beside the render's, as a ratio (into the report and the log)."""
+    timed = [entry for entry in report["frames"] if "addon_ms" in entry]
+    if timed:
+        render_ms = sum(entry["render_ms"] for entry in timed) / len(timed)
+        addon_ms = sum(entry["addon_ms"] for entry in timed) / len(timed)
+        report["mean_ms_per_frame"] = {"render": round(render_ms, 1), "addon": round(addon_ms, 1),
+                                       "addon_over_render": round(addon_ms / render_ms, 4)}
+        log(f"per frame: render {render_ms:.0f} ms, add-on (lamp split, read-back, chain, composite, writing) "
+            f"{addon_ms:.0f} ms = {addon_ms / render_ms:.3f} x the render")

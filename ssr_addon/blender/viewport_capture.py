@@ -1,0 +1,167 @@
+"""Capture the passes SSR needs from a 3D View: EEVEE's viewport engine draws each pass
+into an offscreen buffer (GPUOffScreen.draw_view3d), one draw per pass.
+
+The live viewport mode and the `preview` command share it. A capture yields the same
+RenderPasses a render does (render_passes.passes_from_layers), so the chain cannot tell them apart:
+- Combined, Normal, Specular Light and Color, and the material AOVs come as they are;
+- depth is the view-axis distance of the Position pass;
+- lamp highlights are split off Specular Light as a render splits them
+  (render_passes.eevee_lamp_light): computed in the chain (analytic), or a draw of the lamps
+  alone (lamp_renders.lamps_alone), with the Shadow pass where the split is unshadowed;
+- the view holds still, so motion is zero.
+Overlays are off while capturing: the grid and outlines would land in the passes.
+Every setting the capture changes (shading pass, overlays, the scene for the lamp draw)
+is restored before it returns.
+"""
+import bpy
+import gpu
+import mathutils
+import numpy as np
+
+from ..core.errors import SSRError
+from ..core.gpu_backend import download, lap
+from .lamp_renders import lamps_alone
+from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
+from .overrides import TemporaryChanges
+from .render_passes import eevee_lamp_light, passes_from_layers, surface_layers
+from .render_setup import SSR_BASE_RAYTRACING, decide_lamp_split, use_eevee_raytracing
+
+# Shadings whose viewport draw is EEVEE's and has render passes.
+CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
+# Pass name as a render's EXR names it -> the viewport's render_pass for it.
+VIEWPORT_PASSES = {
+    "Combined": "COMBINED", "Normal": "NORMAL", "Position": "POSITION",
+    "Glossy Direct": "SPECULAR_LIGHT", "Glossy Color": "SPECULAR_COLOR",
+    ROUGHNESS_AOV: ROUGHNESS_AOV, F0_AOV: F0_AOV,
+}
+
+
+def capture_problem(scene, space):
+    """Why a capture of SPACE (a SpaceView3D) cannot run on SCENE, or None."""
+    if scene.render.engine != "BLENDER_EEVEE":
+        return "live SSR needs the EEVEE render engine"
+    if space.shading.type not in CAPTURE_SHADINGS:
+        return "live SSR needs Material Preview or Rendered shading"
+    return None
+
+
+class ViewportCapture:
+    """Draws the passes of one 3D View (SPACE, its WINDOW REGION) into an offscreen buffer kept
+    between captures of the same size."""
+
+    def __init__(self, space, region):
+        self.space, self.region = space, region
+        self._offscreen = None
+
+    def capture(self, scene, view_layer, view_matrix, projection_matrix, size, clip, lamp_split="auto", timer=None):
+        """RenderPasses of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX (4x4 arrays) at SIZE
+        (width, height); CLIP is (clip_start, clip_end). TIMER gets "capture", and "lamp_split"
+        where the lamps are drawn alone."""
+        split = decide_lamp_split(scene, "eevee", lamp_split)
+        view, projection = _matrix(view_matrix), _matrix(projection_matrix)
+        with TemporaryChanges() as changes:
+            self._prepare(scene, size, changes)
+            use_eevee_raytracing(scene, SSR_BASE_RAYTRACING, changes)
+            warnings = add_material_aovs(scene, view_layer, changes)
+            view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
+            wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if split.needs_shadow_pass else {}))
+            # A render's passes have three channels but Combined: so do these.
+            layers = {name: self._draw(scene, view_layer, view, projection, render_pass,
+                                       4 if name == "Combined" else 3) for name, render_pass in wanted.items()}
+            lap(timer, "capture")
+            layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
+            surface = surface_layers(layers)
+
+            def rendered_lamp_specular(shadows):
+                with TemporaryChanges() as lamp_only:
+                    lamps_alone(scene, lamp_only, shadows)
+                    view_layer.update()
+                    specular = self._draw(scene, view_layer, view, projection, "SPECULAR_LIGHT", 3)
+                view_layer.update()
+                lap(timer, "lamp_split")
+                return specular
+
+            view_array = np.asarray(view_matrix, np.float32)
+            projection_array = np.asarray(projection_matrix, np.float32)
+            lamp_light, lamps = eevee_lamp_light(split, layers, rendered_lamp_specular)
+        view_layer.update()
+        return passes_from_layers(layers, surface, layers["Glossy Direct"], lamp_light, view_array, projection_array,
+                                  clip, "eevee", scene.eevee.taa_samples, warnings, lamps)
+
+    def combined(self, scene, view_layer, view_matrix, projection_matrix, size):
+        """EEVEE's image of the view alone, (H, W, 4)."""
+        with TemporaryChanges() as changes:
+            self._prepare(scene, size, changes)
+            view_layer.update()
+            combined = self._draw(scene, view_layer, _matrix(view_matrix), _matrix(projection_matrix), "COMBINED", 4)
+        view_layer.update()
+        return combined
+
+    def _prepare(self, scene, size, changes):
+        """Check that the view can be captured, size the offscreen buffer, and (through CHANGES)
+        turn the overlays off: the grid and outlines would land in the passes."""
+        problem = capture_problem(scene, self.space)
+        if problem is not None:
+            raise SSRError(problem)
+        self._ensure_offscreen(size)
+        changes.set(self.space.overlay, "show_overlays", False)
+        changes.set(self.space.shading, "render_pass", self.space.shading.render_pass)  # _draw switches it
+
+    def _ensure_offscreen(self, size):
+        if self._offscreen is None or (self._offscreen.width, self._offscreen.height) != tuple(size):
+            self.release()
+            try:
+                self._offscreen = gpu.types.GPUOffScreen(*size, format="RGBA32F")
+            except Exception as error:  # gpu raises plain Exceptions for allocation failures
+                raise SSRError(f"cannot make a {size[0]}x{size[1]} offscreen buffer: {error}") from None
+
+    def _draw(self, scene, view_layer, view, projection, render_pass, channels):
+        """One pass of the view as an (H, W, CHANNELS) array in image order."""
+        self.space.shading.render_pass = render_pass
+        try:
+            self._offscreen.draw_view3d(scene, view_layer, self.space, self.region, view, projection,
+                                        do_color_management=False)
+        except Exception as error:  # a failing draw must end the capture, not Blender
+            raise SSRError(f"the viewport could not draw its {render_pass} pass: {error}") from None
+        return download(self._offscreen.texture_color, channels)
+
+    def release(self):
+        if self._offscreen is not None:
+            self._offscreen.free()
+            self._offscreen = None
+
+
+def _matrix(array):
+    return mathutils.Matrix(np.asarray(array, np.float64).tolist())
+
+
+def view_depth(position, view_matrix):
+    """Distance along the view axis of each pixel's world POSITION ((H, W, 3)), as an (H, W, 1) array."""
+    view = np.asarray(view_matrix, np.float32)
+    depth = -(position @ view[2, :3] + view[2, 3])
+    return depth[..., None].astype(np.float32)
+
+
+def find_view3d(screen):
+    """(space, region) of the largest 3D View of SCREEN, or None."""
+    areas = [area for area in screen.areas if area.type == "VIEW_3D"] if screen else []
+    if not areas:
+        return None
+    area = max(areas, key=lambda area: area.width * area.height)
+    region = window_region(area)
+    return (area.spaces.active, region) if region is not None else None
+
+
+def window_region(area):
+    """The region of AREA that draws the view itself (not its header or sidebar), or None."""
+    return next((region for region in area.regions if region.type == "WINDOW"), None)
+
+
+def headless_view3d():
+    """The (space, region) a headless capture draws through: the startup file's 3D View."""
+    window = bpy.context.window or (bpy.context.window_manager.windows[0]
+                                    if bpy.context.window_manager.windows else None)
+    found = find_view3d(window.screen if window else None)
+    if found is None:
+        raise SSRError("no 3D View to capture through: the open file's screen has none")
+    return found

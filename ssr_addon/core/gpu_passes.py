@@ -1,0 +1,275 @@
+"""Every GPU pass, declared once in the style of EEVEE's create-infos: its GLSL file, the
+resources it reads and writes, the stage it is timed as and the layers of the passes EXR
+(and debug views) its outputs hold.
+
+Names follow EEVEE's: a sampler `X_tx` reads the chain resource X, an output `X_img` writes
+it (chain.FrameRun binds them by name), `params` is the shared uniform block (uniforms.PARAMS).
+GLSL files hold only functions and main(); `*_lib.glsl` files are shared preludes. From one
+declaration the chain runs the pass, the stage timer names it, the passes EXR lays out its
+layers (layers.py) and the debug views are offered (DEBUG_VIEWS). Adding a pass is one GLSL
+file and one declaration, placed in CHAIN_PASSES where it runs.
+"""
+import functools
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from .frame_sequence import MAX_ITERATIONS
+from .gpu_backend import FullscreenPass
+from .uniforms import glsl_struct, lamp_block_glsl
+
+SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
+DFG_SIZE = 32  # the FG table's resolution in n.v and roughness
+DFG_SAMPLES = 4096  # points per texel: within 0.015 of a 32768-point table even at grazing angles
+# Share of the GGX lobe's visible normals, the outermost, that rays never sample (trace.glsl);
+# the resolve bounds each ray's cone by the lobe that is left.
+LOBE_TAIL = 0.02
+CONVERGENCE_TILE = 16  # pixels: each tile this size counts alike in the convergence check
+LUT_SIZE = 65                             # display LUT lattice points per channel (display_transform.py)
+# Stops of scene-linear light the display LUT spans (its first point is 0). 1.0, where the
+# Standard view clips, falls on a lattice point: interpolating across that bend costs 5 steps.
+LUT_LOG2_MIN, LUT_LOG2_MAX = -15.0, 9.0
+
+
+@dataclass(frozen=True)
+class DebugView:
+    """A choice of the Debug View setting: the layer it is declared on, shown as an image."""
+    identifier: str
+    label: str
+    description: str
+
+
+@dataclass(frozen=True)
+class Layer:
+    """A layer of the passes EXR: CHANNELS of its resource, one per letter of COMPONENTS
+    (default: the first ones), through CONVERT (numpy) where given; VIEW offers it as a debug view."""
+    name: str
+    components: str
+    channels: tuple = None
+    convert: object = None
+    view: DebugView = None
+
+    @property
+    def channel_indices(self):
+        return self.channels if self.channels is not None else tuple(range(len(self.components)))
+
+
+@dataclass(frozen=True)
+class Output:
+    """An output `X_img` of a pass, writing resource X. SIZE: "frame", "trace" (one ray per
+    traced texel), "resolve" (where the resolve shades) or a fixed (width, height). HISTORY: the
+    sampler that reads its value from the iteration before (it then takes turns between two
+    textures, so a pass can read the old value while writing the new one)."""
+    name: str
+    size: object = "frame"
+    channels: int = 4
+    history: str = None
+    layers: tuple = ()
+
+    @property
+    def resource(self):
+        return self.name[:-len("_img")]
+
+
+def _always(frame):
+    return True
+
+
+@dataclass(frozen=True, eq=False)
+class GPUPass:
+    """One fragment shader drawn over its whole target (a full-screen triangle).
+
+    SAMPLERS read resources by name (`X_tx` reads X) unless READS maps them elsewhere; RUNS(frame)
+    says whether it runs in a frame (chain.FrameContext), and SKIPPED which resource stands in
+    for each of its outputs when it does not. STAGE names its time in a StageTimer (None: a
+    helper draw its caller times)."""
+    name: str
+    source: str
+    stage: str = None
+    samplers: tuple = ()
+    outputs: tuple = ()
+    libraries: tuple = ("common_lib.glsl",)
+    defines: tuple = ()            # (name, value)
+    push_constants: tuple = ()     # (type, name)
+    uniform_block: str = "params"  # "params", "lamp_block" (uniforms.LAMP_BLOCK) or None
+    volume_samplers: tuple = ()    # 3D textures
+    reads: tuple = ()              # (sampler, resource) where the resource is not the sampler's name
+    runs: object = _always
+    skipped: tuple = ()            # (resource, the resource that stands in for it)
+    directory: str = SHADER_DIR
+
+    def resource_read(self, sampler):
+        return dict(self.reads).get(sampler, sampler[:-len("_tx")])
+
+    def draw(self, targets, samplers=(), uniform_blocks=(), constants=(), region=None):
+        """Draw into TARGETS (FullscreenPass.draw), compiling the shader on first use."""
+        compiled(self).draw(targets, samplers=samplers, uniform_blocks=uniform_blocks, constants=constants,
+                            region=region)
+
+    def glsl(self):
+        """The fragment source: the libraries (the pass's own folder first, then the core's), then its file."""
+        return "".join(_glsl_source(self.directory, name) for name in (*self.libraries, self.source))
+
+
+@functools.lru_cache(maxsize=None)
+def _glsl_source(directory, name):
+    path = os.path.join(directory, name)
+    if not os.path.isfile(path):
+        path = os.path.join(SHADER_DIR, name)
+    with open(path, encoding="utf-8") as source:
+        return source.read()
+
+
+_compiled = {}
+
+
+def compiled(gpu_pass):
+    """The pass's shader, built once per process (GPU context) and reused every frame."""
+    shader = _compiled.get(gpu_pass)
+    if shader is None:
+        def declare(info):
+            if gpu_pass.uniform_block == "params":
+                info.uniform_buf(0, "SSRParams", "params")
+            elif gpu_pass.uniform_block == "lamp_block":
+                info.uniform_buf(0, "LampBlock", "lamp_block")
+            for name, value in gpu_pass.defines:
+                info.define(name, value)
+            for kind, constant in gpu_pass.push_constants:
+                info.push_constant(kind, constant)
+            for slot, sampler in enumerate(gpu_pass.samplers):
+                info.sampler(slot, "FLOAT_2D", sampler)
+            for slot, sampler in enumerate(gpu_pass.volume_samplers, len(gpu_pass.samplers)):
+                info.sampler(slot, "FLOAT_3D", sampler)
+            for slot, output in enumerate(gpu_pass.outputs):
+                info.fragment_out(slot, "VEC4", output.name)
+        typedefs = {"params": glsl_struct, "lamp_block": lamp_block_glsl}.get(gpu_pass.uniform_block, str)()
+        shader = _compiled[gpu_pass] = FullscreenPass(gpu_pass.name, gpu_pass.glsl(), declare, typedefs=typedefs)
+    return shader
+
+
+def release_passes():
+    """Drop the compiled shaders (on add-on unregister)."""
+    _compiled.clear()
+
+
+def history_weight(count):
+    """Share of each pixel that came from history, 1 - 1 / frames accumulated."""
+    return 1.0 - 1.0 / np.maximum(count, 1.0)
+
+
+# --- the chain's passes, in the order of the slides -------------------------------------------------------------
+
+_TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "surface_ray_lib.glsl", "linear_march_lib.glsl",
+                    "hiz_march_lib.glsl", "ggx_lib.glsl")
+# Where a pyramid level reads its source and draws itself (pyramids.build_pyramid).
+_PYRAMID_LEVEL = (("IVEC2", "source_offset"), ("IVEC2", "source_size"), ("IVEC2", "level_offset"))
+
+
+def _resolves_at_half(frame):
+    return frame.resolve_size != frame.size
+
+
+LAMP_SPLIT = GPUPass(
+    "lamp_split", "lamp_split.glsl", stage="lamp_split",
+    samplers=("depth_tx", "normal_tx", "roughness_tx", "albedo_tx", "specular_light_tx", "shadow_tx"),
+    outputs=(Output("specular_direct_img"), Output("specular_indirect_img")),
+    libraries=("ggx_lib.glsl",), uniform_block="lamp_block",
+    runs=lambda frame: frame.inputs.lamps is not None)
+HIZ_DOWNSAMPLE = GPUPass("hiz_downsample", "pyramid_downsample.glsl", stage="hiz", samplers=("source_tx",),
+                         outputs=(Output("level_img", channels=1),), libraries=(), defines=(("REDUCE_MIN", ""),),
+                         push_constants=_PYRAMID_LEVEL, uniform_block=None)
+COLOR_DOWNSAMPLE = GPUPass("color_downsample", "pyramid_downsample.glsl", stage="color_pyramid",
+                           samplers=("source_tx",), outputs=(Output("level_img"),), libraries=(),
+                           push_constants=_PYRAMID_LEVEL, uniform_block=None)
+PYRAMID_PACK = GPUPass("pyramid_pack", "pyramid_pack.glsl", samplers=("level_tx",), outputs=(Output("atlas_img"),),
+                       libraries=(), push_constants=(("IVEC2", "level_offset"),), uniform_block=None)
+TRACE = GPUPass(
+    "trace", "trace.glsl", stage="trace",
+    samplers=("depth_tx", "normal_tx", "roughness_tx", "hiz_tx"),
+    outputs=(Output("ray_hit_img", size="trace", layers=(
+                 Layer("SSR Hit", "UV", view=DebugView("HIT_UV", "Hit UV", "Screen position each ray hit "
+                                                                           "(red: x, green: y)")),
+                 Layer("SSR Ray PDF", "V", channels=(2,)))),
+             Output("ray_dir_img", size="trace", layers=(Layer("SSR Hit Distance", "V", channels=(3,)),)),
+             Output("ray_stats_img", size="trace", layers=(
+                 Layer("SSR Ray Class", "V", channels=(0,), view=DebugView(
+                     "RAY_CLASS", "Ray Class",
+                     "Which tracer each pixel's ray took: 0 none, 1 cheap linear march, 2 expensive Hi-Z")),
+                 Layer("SSR HiZ Level", "V", channels=(2,), view=DebugView(
+                     "HIZ_LEVEL", "Hi-Z Level", "Coarsest Hi-Z pyramid level each ray reached")),
+                 Layer("SSR Iterations", "V", channels=(1,), view=DebugView(
+                     "ITERATIONS", "Iterations", "March steps each pixel's ray took (the last trace iteration)"))))),
+    libraries=_TRACE_LIBRARIES, defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
+RESOLVE = GPUPass(
+    "resolve", "resolve.glsl", stage="resolve",
+    samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_count_tx"),
+    outputs=(Output("resolved_img", size="resolve", layers=(Layer("SSR Resolve", "RGBA"),)),
+             Output("reflection_hit_img", size="resolve")),
+    libraries=("common_lib.glsl", "ggx_lib.glsl", "history_lib.glsl"), defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
+RESOLVE_UPSCALE = GPUPass("resolve_upscale", "resolve_upscale.glsl", stage="resolve",
+                          samplers=("resolved_tx", "reflection_hit_tx"),
+                          outputs=(Output("resolved_img"), Output("reflection_hit_img")), libraries=(),
+                          runs=_resolves_at_half)
+DENOISE_SPATIAL = GPUPass(
+    "denoise_spatial", "denoise_spatial.glsl", stage="spatial",
+    samplers=("resolved_tx", "reflection_hit_tx", "depth_tx", "normal_tx", "roughness_tx", "history_count_tx"),
+    outputs=(Output("spatial_img", layers=(Layer("SSR Spatial", "RGBA"),)),),
+    libraries=("common_lib.glsl", "ggx_lib.glsl", "history_lib.glsl"),
+    runs=lambda frame: frame.settings.use_spatial_filter, skipped=(("spatial", "resolved"),))
+TEMPORAL = GPUPass(
+    "temporal", "temporal.glsl", stage="temporal",
+    samplers=("spatial_tx", "reflection_hit_tx", "depth_tx", "motion_tx", "radiance_tx", "previous_radiance_tx",
+              "history_tx", "history_count_tx"),
+    outputs=(Output("reflection_img", history="history_tx", layers=(
+                 Layer("SSR Reflection", "RGB", view=DebugView("REFLECTION", "Reflection",
+                                                               "Reflected radiance alone")),
+                 Layer("SSR Confidence", "V", channels=(3,), view=DebugView(
+                     "CONFIDENCE", "Confidence",
+                     "How much of each pixel's reflection came from a ray hit (white: all)")))),
+             Output("history_count_img", history="history_count_tx", layers=(
+                 Layer("SSR History Weight", "V", channels=(0,), convert=history_weight),))),
+    defines=(("STATIC_HISTORY_FRAMES", f"{MAX_ITERATIONS}.0"),),
+    runs=lambda frame: frame.settings.use_temporal, skipped=(("reflection", "spatial"),))
+DFG_TABLE = GPUPass("dfg_table", "dfg_table.glsl", outputs=(Output("dfg_img", size=(DFG_SIZE, DFG_SIZE)),),
+                    libraries=("common_lib.glsl", "ggx_lib.glsl"),
+                    defines=(("DFG_SIZE", str(DFG_SIZE)), ("DFG_SAMPLES", str(DFG_SAMPLES))))
+COMPOSITE = GPUPass(
+    "composite", "composite.glsl", stage="composite",
+    samplers=("combined_tx", "specular_color_tx", "specular_indirect_tx", "reflection_tx", "f0_tx", "dfg_tx",
+              "depth_tx", "normal_tx", "roughness_tx"),
+    outputs=(Output("final_img"),))
+CONVERGENCE_TILES = GPUPass("convergence_tiles", "convergence_tiles.glsl", stage="convergence",
+                            samplers=("before_tx", "after_tx"), outputs=(Output("tiles_img"),), libraries=(),
+                            defines=(("CONVERGENCE_TILE", str(CONVERGENCE_TILE)),), uniform_block=None)
+COPY = GPUPass("copy", "copy.glsl", samplers=("source_tx",), outputs=(Output("copy_img"),), libraries=(),
+               uniform_block=None)
+DISPLAY_TRANSFORM = GPUPass(
+    "display_transform", "display_transform.glsl", samplers=("image_tx",), outputs=(Output("display_img"),),
+    libraries=(), defines=(("LUT_SIZE", f"{LUT_SIZE}.0"), ("LUT_LOG2_MIN", repr(LUT_LOG2_MIN)),
+                           ("LUT_LOG2_MAX", repr(LUT_LOG2_MAX))),
+    push_constants=(("INT", "use_view_transform"), ("FLOAT", "exposure_scale")), uniform_block=None,
+    volume_samplers=("lut_tx",))
+
+# What a frame runs, in order (chain.FrameRun): once a frame, once an iteration, once a composite.
+FRAME_PASSES = (LAMP_SPLIT,)
+ITERATION_PASSES = (TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
+CHAIN_PASSES = (*FRAME_PASSES, HIZ_DOWNSAMPLE, COLOR_DOWNSAMPLE, *ITERATION_PASSES, CONVERGENCE_TILES, COMPOSITE)
+# The chain's stages as a StageTimer names them, in order.
+CHAIN_STAGES = tuple(dict.fromkeys(gpu_pass.stage for gpu_pass in CHAIN_PASSES if gpu_pass.stage))
+
+
+def chain_layers():
+    """[(resource, Layer)] of every layer the chain's passes declare, in the order they run."""
+    layers = {}
+    for gpu_pass in CHAIN_PASSES:
+        for output in gpu_pass.outputs:
+            for layer in output.layers:
+                layers.setdefault(layer.name, (output.resource, layer))
+    return list(layers.values())
+
+
+# The Debug View setting's choices: the final image, then every layer declared with a view.
+DEBUG_VIEWS = (("FINAL", "Final", "The composited image"),
+               *((layer.view.identifier, layer.view.label, layer.view.description)
+                 for _, layer in chain_layers() if layer.view is not None))

@@ -1,0 +1,96 @@
+"""What the chain starts from: the engine's passes of one frame (RenderPasses, numpy, from a
+render or a viewport capture) and the same uploaded as textures (ChainInputs)."""
+from dataclasses import dataclass
+
+import numpy as np
+
+from .gpu_backend import lap, upload
+from .ray_budget import ray_budget
+
+BACKGROUND_DEPTH = 1e10  # depth of pixels that show the world (past any clip_end)
+
+
+@dataclass
+class RenderPasses:
+    """One frame's passes as the engine rendered them, float32 in image order (row 0 at the top)."""
+    combined: np.ndarray         # (H, W, 4) the engine's final image, scene linear
+    depth: np.ndarray            # (H, W) distance along the view axis; BACKGROUND_DEPTH for the world
+    normal: np.ndarray           # (H, W, 3) world-space shading normal
+    roughness: np.ndarray        # (H, W) 1 where no specular BSDF was rendered
+    specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
+    f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
+    motion: np.ndarray           # (H, W, 2) screen offset to the previous frame, pixels, y up (Vector pass)
+    specular_light: np.ndarray   # (H, W, 3) all reflected light, before FG: EEVEE's Specular Light,
+                                 # Cycles' Glossy Direct + Indirect
+    lamp_light: np.ndarray       # (H, W, 3) the part of it that stays, highlights of lamps the camera cannot
+                                 # see; None where the chain splits them off itself (lamps)
+    view_matrix: np.ndarray      # (4, 4) world to view
+    projection_matrix: np.ndarray  # (4, 4) view to clip
+    clip_start: float
+    clip_end: float
+    engine: str
+    samples: int                 # samples per pixel the engine rendered with
+    material_warnings: tuple = ()  # materials whose roughness/F0 the AOVs could not read, and what was assumed
+    lamps: object = None         # lamp_split.LampLights the chain splits off the specular light (analytic)
+
+    @property
+    def size(self):
+        return self.depth.shape[1], self.depth.shape[0]
+
+    @property
+    def specular_direct(self):
+        """(H, W, 3) lamp highlights, kept as they are; where the chain splits them off
+        (lamps), its "Specular Direct" layer holds them."""
+        if self.lamp_light is None:
+            raise ValueError("the chain splits these lamps off on the GPU: read its Specular Direct layer")
+        return self.lamp_light
+
+    @property
+    def specular_indirect(self):
+        """(H, W, 3) reflected light SSR replaces, before FG: probes/world and, with the scene's
+        ray tracing on, EEVEE's own traced reflections (EEVEE); world, emissive and other
+        surfaces (Cycles). As lamp_split.glsl splits it on the GPU."""
+        return np.maximum(self.specular_light - self.specular_direct, 0.0)
+
+
+@dataclass
+class ChainInputs:
+    """One frame's inputs as textures at full resolution, by the resource names the passes read
+    (gpu_passes): radiance (the lit scene reflections are fetched from), depth, normal,
+    roughness, combined, specular_color, f0 (specular reflectance at normal incidence, for FG),
+    motion (screen offset to the previous frame in pixels, the Vector pass) and either
+    specular_indirect or, where LAMPS are given, specular_light and shadow, which the chain's
+    first pass splits."""
+    textures: dict
+    view_matrix: np.ndarray
+    projection_matrix: np.ndarray
+    clip_start: float
+    clip_end: float
+    # Pixels rougher than this get cheap rays; ties at it are expensive with this probability.
+    ray_budget: tuple = (1.0, 1.0)
+    lamps: tuple = None          # lamp_split.Lamp records the chain splits off the specular light
+
+    @property
+    def size(self):
+        depth_tx = self.textures["depth"]
+        return depth_tx.width, depth_tx.height
+
+    @classmethod
+    def from_passes(cls, passes, settings, timer=None):
+        """Upload RenderPasses (TIMER: "upload"); the lit scene (Combined) is also what reflections show."""
+        combined_tx = upload(passes.combined)
+        textures = {"radiance": combined_tx, "combined": combined_tx, "depth": upload(passes.depth),
+                    "normal": upload(passes.normal), "roughness": upload(passes.roughness),
+                    "specular_color": upload(passes.specular_color), "f0": upload(passes.f0),
+                    "motion": upload(passes.motion)}
+        if passes.lamps is None:
+            textures["specular_indirect"] = upload(passes.specular_indirect)
+        else:
+            textures["specular_light"] = upload(passes.specular_light)
+            textures["shadow"] = upload(passes.lamps.shadow)
+        inputs = cls(textures, view_matrix=passes.view_matrix, projection_matrix=passes.projection_matrix,
+                     clip_start=passes.clip_start, clip_end=passes.clip_end,
+                     ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings),
+                     lamps=None if passes.lamps is None else passes.lamps.lamps)
+        lap(timer, "upload")
+        return inputs

@@ -1,0 +1,53 @@
+/* Composite: put traced reflections where the engine had only probe/world reflections.
+ *
+ * Inputs:  combined_tx (the engine's image), specular_color_tx (the engine's own
+ *          specular weight of the light it reflected), specular_indirect_tx (that
+ *          light where it came from probes and the world), reflection_tx (SSR:
+ *          premultiplied radiance, confidence), f0_tx, dfg_tx (the FG table),
+ *          depth_tx, normal_tx, roughness_tx.
+ * Output:  final_img.
+ *
+ * The engine's image is a sum of passes:
+ *   combined = diffuse_color * diffuse_light + specular_color * (lamp_specular + indirect_specular)
+ *            + emission + environment (+ transmission, volumes...).
+ * SSR estimates indirect specular light L, which the slides' estimator
+ * multiplies by the pre-integrated FG = F0 * A + B, so with confidence c:
+ *   final = combined + c * FG * L - c * specular_color * indirect_specular.
+ * Diffuse light, emission, the world seen directly and lamp highlights pass
+ * through untouched; where c is 0 the probe/world reflection stays.
+ *
+ * indirect_specular is everything SSR can stand in for, lamps excepted (blender/render_passes.py):
+ *   EEVEE:  Specular Light less the lamps' highlights (probes and the world);
+ *   Cycles: Glossy Indirect (other surfaces) plus the part of Glossy Direct that is
+ *           not lamps the camera cannot see: reflected emissive surfaces and the world,
+ *           which Cycles counts as direct light (one bounce to an emitter). SSR's rays
+ *           fetch the emissive surfaces' Combined, so leaving them in would count the
+ *           reflection of an on-screen emitter twice. */
+
+vec3 fg_term(vec3 f0, float n_dot_v, float roughness)
+{
+  /* Texel i holds (i + 0.5) / N: map [0.5/N, 1 - 0.5/N] onto the texel centres. */
+  vec2 table_size = vec2(textureSize(dfg_tx, 0));
+  vec2 coordinate = clamp(vec2(n_dot_v, roughness), 0.5 / table_size, 1.0 - 0.5 / table_size);
+  vec2 scale_bias = textureLod(dfg_tx, coordinate, 0.0).xy;
+  return f0 * scale_bias.x + scale_bias.y;
+}
+
+void main()
+{
+  ivec2 texel = ivec2(gl_FragCoord.xy);
+  vec4 combined = texelFetch(combined_tx, texel, 0);
+  vec4 reflection = texelFetch(reflection_tx, texel, 0);
+  final_img = combined;
+  if (!(reflection.a > 0.0)) {
+    return; /* no reflection (NaN included): the engine's image as it is */
+  }
+  vec2 uv = (vec2(texel) + 0.5) * params.pixel_size;
+  vec3 normal = view_normal(texelFetch(normal_tx, texel, 0).xyz);
+  float n_dot_v = clamp(dot(normal, -view_incident(uv)), 0.0, 1.0);
+  vec3 fg = fg_term(texelFetch(f0_tx, texel, 0).rgb, n_dot_v, texelFetch(roughness_tx, texel, 0).r);
+  vec3 specular_color = texelFetch(specular_color_tx, texel, 0).rgb;
+  vec3 indirect = texelFetch(specular_indirect_tx, texel, 0).rgb;
+  vec3 replaced = fg * reflection.rgb - reflection.a * specular_color * indirect;
+  final_img = vec4(max(combined.rgb + replaced, vec3(0.0)), combined.a);
+}

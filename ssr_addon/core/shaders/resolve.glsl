@@ -1,0 +1,135 @@
+/* Colour resolve with neighbour ray reuse ("Weighing Neighbors", "Sparse Ray
+ * Tracing" and "Filtered Importance Sampling" slides): at full resolution, or
+ * (params.resolve_scale 2, the sparse slide's comparison) at the traced size,
+ * each texel resolving the pixel its ray started from; resolve_upscale.glsl then
+ * scales that up.
+ *
+ * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
+ *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_count_tx
+ *          (iterations the temporal history holds, history_lib.glsl).
+ * Outputs: resolved_img     = (reflected radiance * confidence, confidence),
+ *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
+ *
+ * Each pixel reuses the rays of its own and neighbouring traced texels with the
+ * ratio estimator  L = sum(L_k f_s(l_k) cos / p_k) / sum(f_s(l_k) cos / p_k),
+ * where l_k runs from this pixel to ray k's hit and p_k is the pdf ray k was
+ * drawn with. The FG factor is applied by the composite. Rays that missed
+ * count in the denominator only through the confidence: confidence is the
+ * share of the BRDF weight whose rays found a trustworthy hit.
+ *
+ * Firefly guard (params.use_firefly_guard; Karis 2014, EEVEE's denoiser): the
+ * hits' colours are averaged tone-mapped, c / (1 + max(c)), and mapped back, so
+ * one bright ray among dim ones cannot dominate a pixel. */
+
+vec3 tonemap(vec3 color)
+{
+  return color / (1.0 + max(max(color.r, color.g), color.b));
+}
+
+vec3 tonemap_inverse(vec3 color)
+{
+  return color / max(1.0 - max(max(color.r, color.g), color.b), 1e-4);
+}
+
+const ivec2 NEIGHBOURS[9] = ivec2[9](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(1, 1), ivec2(-1, 0),
+                                     ivec2(0, -1), ivec2(-1, 1), ivec2(1, -1), ivec2(-1, -1));
+
+/* Colour of a ray's hit as a cone: the pyramid level whose texel matches the
+ * patch the sample stands for, SOLID_ANGLE steradians seen at the hit distance. */
+vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
+{
+  float level = 0.0;
+  if (params.use_cone_filter != 0 && params.use_importance_sampling != 0) {
+    float hit_depth = texelFetch(depth_tx, texel_at(hit_uv * params.viewport_size), 0).r;
+    float patch_area = hit_distance * hit_distance * solid_angle;
+    float texel_area = pow(pixel_footprint(hit_depth), 2.0);
+    level = clamp(0.5 * log2(patch_area / texel_area), 0.0, float(params.color_levels) - 1.0);
+  }
+  int lower = int(floor(level));
+  int upper = min(lower + 1, params.color_levels - 1);
+  vec3 a = atlas_sample(color_tx, params.color_level[lower], hit_uv).rgb;
+  vec3 b = atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb;
+  return mix(a, b, level - float(lower));
+}
+
+void main()
+{
+  ivec2 pixel = params.resolve_scale > 1 ? ray_origin_pixel(ivec2(gl_FragCoord.xy)) : ivec2(gl_FragCoord.xy);
+  resolved_img = vec4(0.0);
+  reflection_hit_img = vec4(0.0);
+  float depth = texelFetch(depth_tx, pixel, 0).r;
+  float roughness = texelFetch(roughness_tx, pixel, 0).r;
+  float max_roughness = params.max_roughness;
+  if (is_background(depth) || roughness > max_roughness) {
+    return;
+  }
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
+  vec3 position = view_position(uv, depth);
+  vec3 to_eye = -view_incident(uv);
+  vec3 normal = view_normal(texelFetch(normal_tx, pixel, 0).xyz);
+  float alpha = ggx_alpha(roughness);
+
+  int scale = params.trace_scale;
+  ivec2 own_texel = pixel / scale;
+  /* Mirror the neighbour pattern towards this pixel's side of its quad, so the
+   * first four rays are the four nearest. */
+  ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
+  ivec2 trace_size = ivec2(params.trace_size);
+  int ray_count = params.resolve_samples;
+  float rays_averaged = float(ray_count) * accumulated_iterations(pixel);
+
+  /* A ray stands for 1 / (N pdf) steradians of the lobe (filtered importance
+   * sampling), N the rays of every iteration the history averages here, but never
+   * for more than the whole sampled lobe: rays reach
+   * sqrt((1 - LOBE_TAIL) / LOBE_TAIL) alphas from its peak (7 at 2 %, trace.glsl),
+   * about that squared over the peak pdf in solid angle. Without the bound, a ray
+   * from a smooth lobe's tail reads a blur of everything around its hit: a speck. */
+  float lobe_solid_angle = (1.0 - LOBE_TAIL) / LOBE_TAIL /
+                           visible_normal_pdf(max(dot(normal, to_eye), 1e-4), 1.0, alpha);
+
+  vec3 radiance_sum = vec3(0.0);
+  float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;
+  vec2 hit_uv_sum = vec2(0.0);
+  for (int k = 0; k < ray_count; k++) {
+    ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
+    vec4 hit = texelFetch(ray_hit_tx, texel, 0);
+    if (!(hit.z > 0.0)) {
+      continue; /* no ray was traced there (sky, rough or back-facing pixel) */
+    }
+    vec4 ray = texelFetch(ray_dir_tx, texel, 0);
+    vec3 direction = ray.xyz;
+    float hit_distance = 0.0;
+    if (hit.w > 0.0) {
+      float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport_size), 0).r;
+      vec3 to_hit = view_position(hit.xy, hit_depth) - position;
+      hit_distance = length(to_hit);
+      direction = to_hit / max(hit_distance, 1e-6);
+    }
+    float weight = ggx_brdf_cos(normal, to_eye, direction, alpha) / hit.z;
+    weight_sum += weight;
+    if (hit.w > 0.0 && weight > 0.0) {
+      float hit_weight = weight * hit.w;
+      vec3 radiance = hit_radiance(hit.xy, hit_distance,
+                                    min(1.0 / (rays_averaged * hit.z), lobe_solid_angle));
+      radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(radiance) : radiance);
+      hit_weight_sum += hit_weight;
+      distance_sum += hit_weight * hit_distance;
+      hit_uv_sum += hit_weight * hit.xy;
+    }
+  }
+  /* Written so that NaN, should any reach here, counts as "no reflection". */
+  if (!(hit_weight_sum > 0.0 && weight_sum > 0.0)) {
+    return;
+  }
+  /* Confidence fades to zero over the top fifth of [0, max_roughness] so the
+   * switch to the probe/world reflection leaves no seam (max_roughness 0: mirrors only). */
+  float roughness_fade = max_roughness > 0.0 ?
+                             1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness) : 1.0;
+  float confidence = hit_weight_sum / weight_sum * roughness_fade;
+  vec3 radiance = radiance_sum / hit_weight_sum;
+  if (params.use_firefly_guard != 0) {
+    radiance = tonemap_inverse(radiance);
+  }
+  resolved_img = vec4(radiance * confidence, confidence);
+  reflection_hit_img = vec4(distance_sum, hit_uv_sum, 0.0) / hit_weight_sum;
+}

@@ -1,0 +1,145 @@
+/* Temporal filter ("Temporal Reprojection" slides): blend this frame's
+ * reflections with the history, found by reprojecting the ray's hit point
+ * (the reflection's virtual image behind the surface) rather than the
+ * reflecting surface, so reflections do not smear under camera motion:
+ *   x_prev = P_{t-1} V_{t-1} x_world.
+ *
+ * Inputs:  spatial_tx (this frame's, spatially filtered, premultiplied), reflection_hit_tx
+ *          (mean hit distance and uv), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
+ *          radiance_tx and previous_radiance_tx (the lit scene now and in the history's frame),
+ *          history_tx (last output: premultiplied radiance, confidence), history_count_tx (frames in it).
+ * Outputs: reflection_img (premultiplied radiance, confidence),
+ *          history_count_img (frames accumulated; where the history was read, in pixels;
+ *                     motion seen: the larger Vector-pass length at the pixel and at its hit).
+ *
+ * Where the camera did not move a pixel (its history lies exactly where it is)
+ * but the light at its hit is not what it was (an animated lamp or material,
+ * which the Vector pass does not show), the history is stale: the pixel starts
+ * afresh, and its frame converges like a still. A pixel holds still when the
+ * camera did not move it and the Vector pass shows no motion at it or at its
+ * hit, now or in the history (which records the motion it saw). Such a
+ * pixel's history is still right: it keeps averaging, unclipped, like a
+ * still's iterations, so a still shot converges to what a long still shows
+ * and then holds steady. Anything else in an
+ * animation (HISTORY_MODE_ANIMATION) clips the history to this frame's 3x3
+ * neighbourhood, mean +- 1.25 standard deviations (Salvi's variance
+ * clipping), which rejects stale history (disocclusion, moving objects), and
+ * averages at most history_frames = 1 / (1 - temporal_weight). Recording the
+ * motion in the history catches what a still pixel cannot show by itself: the
+ * floor a moving ball uncovers, the reflection of the place the ball left. A
+ * still's own iterations (HISTORY_MODE_STILL) share one camera and scene.
+ * Non-finite history or input is dropped, never blended. */
+
+#define VARIANCE_CLIP_GAMMA 1.25
+/* Largest change of the light at a hit between frames that still counts as the same light:
+ * EEVEE renders an unchanged scene the same every frame, Cycles with its seed animated does not. */
+#define RADIANCE_TOLERANCE 0.05
+
+/* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
+vec2 previous_screen_position(vec3 view_point)
+{
+  vec4 previous_clip = params.previous_world_to_clip * (params.view_to_world * vec4(view_point, 1.0));
+  return previous_clip.w > 0.0 ? previous_clip.xy / previous_clip.w * 0.5 + 0.5 : vec2(-1.0);
+}
+
+/* HIT: the resolve's (mean hit distance, mean hit uv) of this pixel. */
+vec2 reprojected_uv(ivec2 pixel, vec2 uv, float depth, vec4 hit)
+{
+  if (params.history_mode == HISTORY_MODE_STILL) {
+    return uv; /* a still's earlier iteration: same camera, same instant */
+  }
+  if (params.reproject_hit != 0 && hit.x > 0.0) {
+    /* The virtual image: as far behind the surface, along the camera ray, as the hit is in
+     * front of it, moved by the camera... */
+    vec3 virtual_point = view_position(uv, depth) + view_incident(uv) * hit.x;
+    vec2 previous_uv = previous_screen_position(virtual_point);
+    /* ...and by what the hit object itself did: the Vector pass at the hit, less the
+     * camera's share of it. Exact for motion parallel to the mirror, an approximation
+     * otherwise; the variance clip catches the rest. */
+    ivec2 hit_texel = texel_at(hit.yz * params.viewport_size);
+    float hit_depth = texelFetch(depth_tx, hit_texel, 0).r;
+    vec2 camera_flow = previous_screen_position(view_position(hit.yz, hit_depth)) - hit.yz;
+    vec2 hit_flow = texelFetch(motion_tx, hit_texel, 0).xy * params.pixel_size;
+    return previous_uv + hit_flow - camera_flow;
+  }
+  /* The reflecting surface, camera and object motion both: the Vector pass itself. */
+  return uv + texelFetch(motion_tx, pixel, 0).xy * params.pixel_size;
+}
+
+vec4 variance_clip(ivec2 pixel, vec4 history)
+{
+  vec4 mean = vec4(0.0), square = vec4(0.0);
+  for (int y = -1; y <= 1; y++) {
+    for (int x = -1; x <= 1; x++) {
+      ivec2 neighbour = clamp(pixel + ivec2(x, y), ivec2(0), ivec2(params.viewport_size) - 1);
+      vec4 value = texelFetch(spatial_tx, neighbour, 0);
+      value = is_finite(value) ? value : vec4(0.0);
+      mean += value;
+      square += value * value;
+    }
+  }
+  mean /= 9.0;
+  vec4 deviation = sqrt(max(square / 9.0 - mean * mean, 0.0));
+  return clamp(history, mean - VARIANCE_CLIP_GAMMA * deviation, mean + VARIANCE_CLIP_GAMMA * deviation);
+}
+
+/* Screen motion in pixels at the pixel or its hit, the larger (0 where nothing moves). */
+float motion_seen(ivec2 pixel, vec4 hit)
+{
+  float motion = length(texelFetch(motion_tx, pixel, 0).xy);
+  if (hit.x > 0.0) {
+    motion = max(motion, length(texelFetch(motion_tx, texel_at(hit.yz * params.viewport_size), 0).xy));
+  }
+  return is_finite(vec4(motion)) ? motion : 1e6; /* unknown motion: assume it moves */
+}
+
+/* The light at the pixel's hit is what the history saw (the camera held the pixel: the same texel). */
+bool hit_light_unchanged(vec4 hit)
+{
+  if (!(hit.x > 0.0)) {
+    return true; /* no hit: the reflection is the fallback's, which SSR does not show */
+  }
+  ivec2 hit_texel = texel_at(hit.yz * params.viewport_size);
+  vec3 now = texelFetch(radiance_tx, hit_texel, 0).rgb;
+  vec3 before = texelFetch(previous_radiance_tx, hit_texel, 0).rgb;
+  vec3 change = abs(now - before);
+  return all(lessThanEqual(change, RADIANCE_TOLERANCE * max(now, before) + 1e-6));
+}
+
+void main()
+{
+  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  vec4 current = texelFetch(spatial_tx, pixel, 0);
+  current = is_finite(current) ? current : vec4(0.0);
+  vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
+  float motion = motion_seen(pixel, hit);
+  reflection_img = current;
+  history_count_img = vec4(1.0, 0.0, 0.0, motion);
+  float depth = texelFetch(depth_tx, pixel, 0).r;
+  if (params.history_mode == HISTORY_MODE_NONE || is_background(depth)) {
+    return;
+  }
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
+  vec2 previous_uv = reprojected_uv(pixel, uv, depth, hit);
+  if (!(all(greaterThanEqual(previous_uv, vec2(0.0))) && all(lessThanEqual(previous_uv, vec2(1.0))))) {
+    return; /* off screen last frame (or not a number): no history */
+  }
+  vec4 history = textureLod(history_tx, previous_uv, 0.0);
+  vec4 history_record = textureLod(history_count_tx, previous_uv, 0.0);
+  float history_count = history_record.x;
+  if (!is_finite(history) || !(history_count >= 1.0)) {
+    return;
+  }
+  bool camera_held_it = all(lessThan(abs(previous_uv - uv) * params.viewport_size, vec2(0.01)));
+  if (params.history_mode == HISTORY_MODE_ANIMATION && camera_held_it && !hit_light_unchanged(hit)) {
+    return;
+  }
+  bool holds_still = params.history_mode == HISTORY_MODE_STILL || (camera_held_it && max(motion, history_record.w) < 0.01);
+  if (!holds_still) {
+    history = variance_clip(pixel, history);
+  }
+  float most_frames = holds_still ? STATIC_HISTORY_FRAMES : params.history_frames;
+  float count = min(history_count + 1.0, most_frames);
+  reflection_img = mix(history, current, 1.0 / count);
+  history_count_img = vec4(count, previous_uv * params.viewport_size, motion);
+}
