@@ -16,8 +16,8 @@ def run_synthetic_chain(depth, normal, roughness, projection, settings, radiance
     outputs = run_chain(inputs, settings, state)
     arrays = {name: download(outputs[name])
               for name in ("ray_hit", "ray_dir", "ray_stats", "resolved", "spatial", "reflection", "final")}
-    if outputs.get("history_count") is not None:
-        arrays["history_count"] = download(outputs["history_count"])
+    if outputs.get("history_record") is not None:
+        arrays["history_record"] = download(outputs["history_record"])
     return arrays, outputs
 
 

@@ -38,7 +38,7 @@ def static_shot(render_scene):
     still = render_scene("wet_street", "ssr", "--resolution", RESOLUTION, "--samples", EEVEE_SAMPLES,
                          "--frames", str(FRAMES[1] - 1))
     long_still = render_scene("wet_street", "ssr", "--resolution", RESOLUTION, "--samples", EEVEE_SAMPLES,
-                              "--frames", str(FRAMES[1]), "--set", "accumulate_frames=256")
+                              "--frames", str(FRAMES[1]), "--set", "accumulate_iterations=256")
     passes = long_still.passes(FRAMES[1])
     mask = bench.reflective_mask(passes["Roughness.V"], rgb(passes, "Specular Color")) & \
         (passes["SSR Confidence.V"] > 0.05)

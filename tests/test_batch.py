@@ -26,7 +26,7 @@ def test_frames_report_their_iterations_and_costs(uninterrupted):
     with open(folder / "report.json", encoding="utf-8") as stream:
         report = json.load(stream)
     assert [entry["frame"] for entry in report["frames"]] == [1, 2, 3, 4]
-    # Every frame converges like a still: the first from accumulate_frames (16 at balanced)
+    # Every frame converges like a still: the first from accumulate_iterations (16 at balanced)
     # iterations, the others from their history (whatever the dolly uncovers starts afresh).
     iterations = [entry["iterations"] for entry in report["frames"]]
     assert iterations[0] >= 16 and all(1 <= count <= 256 for count in iterations), iterations

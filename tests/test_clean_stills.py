@@ -78,7 +78,7 @@ def test_sharp_surfaces_always_get_expensive_rays(gpu_backend):
     showed as stair-steps. Every traced pixel at most sharp_roughness gets a Hi-Z ray."""
     projection, depth, normal, _, floor, _, surface_roughness = mirror_scene(0.05)
     surface_roughness = np.where(floor, 0.05, 0.3).astype(np.float32)
-    settings = preset("balanced").with_overrides(["expensive_ray_budget=0.1", "accumulate_frames=1",
+    settings = preset("balanced").with_overrides(["expensive_ray_budget=0.1", "accumulate_iterations=1",
                                                   "noise_threshold=0", "half_resolution=false"])
     assert floor.mean() > 0.2, "the floor must be more than the budget"
     arrays, _ = run_synthetic_chain(depth, normal, surface_roughness, projection, settings,

@@ -78,7 +78,7 @@ def test_accumulation_adds_no_error_against_cycles(spheres):
     lobe integral (test_glossy_resolve), at 1/sqrt(n) (below), until converged (below).
     Here: accumulating must not add error beyond 1 % (the ratio estimator's few-sample bias
     may land on either side of Cycles), and the reflections must beat the probes."""
-    errors = {n: chain_error(spheres, ChainSettings(accumulate_frames=n, **ESTIMATOR_ONLY)) for n in (1, 16)}
+    errors = {n: chain_error(spheres, ChainSettings(accumulate_iterations=n, **ESTIMATOR_ONLY)) for n in (1, 16)}
     probe_only = chain_error(spheres, ChainSettings(use_ssr=True, max_roughness=0.0))
     print("RMSE vs Cycles by accumulated frames:", errors, "probe only:", probe_only)
     assert errors[16] <= 1.01 * errors[1]
@@ -93,7 +93,7 @@ def test_noise_halves_when_accumulated_frames_quadruple(spheres):
     glossy = spheres[2]
     noise = {}
     for frames in (1, 4, 16):
-        settings = ChainSettings(accumulate_frames=frames, use_cone_filter=False, **ESTIMATOR_ONLY)
+        settings = ChainSettings(accumulate_iterations=frames, use_cone_filter=False, **ESTIMATOR_ONLY)
         a = chain_final(spheres, settings, first_frame=0)
         b = chain_final(spheres, settings, first_frame=1)
         noise[frames] = float(np.sqrt(np.mean((a[glossy] - b[glossy]) ** 2) / 2))
@@ -107,7 +107,7 @@ def test_reuse_and_temporal_filter_beat_the_same_rays_without_them(spheres):
     the same rays, not as many as convergence takes)."""
     plain = chain_error(spheres, ChainSettings(resolve_samples=1, use_temporal=False), frames=4)
     reuse = chain_error(spheres, ChainSettings(resolve_samples=4, use_temporal=False), frames=4)
-    both = chain_error(spheres, ChainSettings(resolve_samples=4, use_temporal=True, accumulate_frames=1,
+    both = chain_error(spheres, ChainSettings(resolve_samples=4, use_temporal=True, accumulate_iterations=1,
                                               noise_threshold=0.0), frames=4)
     print(f"RMSE: no reuse/no temporal {plain:.4f}, reuse {reuse:.4f}, reuse + temporal {both:.4f}")
     assert reuse < plain
@@ -130,15 +130,15 @@ def test_a_still_accumulates_until_converged(spheres):
     reflection by less than the threshold, so it ends within about that of a 256-iteration still,
     where a fixed 4 iterations are not."""
     glossy = spheres[2]
-    converged, _ = still_reflection(spheres, ChainSettings(accumulate_frames=256, **ESTIMATOR_ONLY))
+    converged, _ = still_reflection(spheres, ChainSettings(accumulate_iterations=256, **ESTIMATOR_ONLY))
     level = converged[glossy].mean()
 
     def distance(reflection):
         return float(np.abs(reflection[glossy] - converged[glossy]).mean() / level)
     threshold = 0.02
-    fixed, fixed_iterations = still_reflection(spheres, ChainSettings(accumulate_frames=4, **ESTIMATOR_ONLY))
+    fixed, fixed_iterations = still_reflection(spheres, ChainSettings(accumulate_iterations=4, **ESTIMATOR_ONLY))
     adaptive, iterations = still_reflection(
-        spheres, ChainSettings(accumulate_frames=4, **{**ESTIMATOR_ONLY, "noise_threshold": threshold}))
+        spheres, ChainSettings(accumulate_iterations=4, **{**ESTIMATOR_ONLY, "noise_threshold": threshold}))
     print(f"distance to 256 iterations: fixed {fixed_iterations} {distance(fixed):.4f}, "
           f"adaptive {iterations} {distance(adaptive):.4f}")
     assert fixed_iterations == 4 and distance(fixed) > threshold, "the scene must need more than 4 iterations"

@@ -56,7 +56,7 @@ def test_fg_from_the_f0_aov_matches_eevee_specular_colour(gpu_backend):
     from ssr_addon.core.chain import ChainState, run_chain
     from ssr_addon.core.inputs import ChainInputs
     from ssr_addon.core.gpu_backend import download
-    settings = ChainSettings(accumulate_frames=1)
+    settings = ChainSettings(accumulate_iterations=1)
     state = ChainState.still()
     state.begin_frame(1)
     run_chain(ChainInputs.from_passes(passes, settings), settings, state)

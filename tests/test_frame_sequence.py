@@ -174,7 +174,7 @@ def test_hit_point_reprojection_matches_the_analytic_mirror_image(gpu_backend):
     panned[0, 3] = -pan  # camera moved by +pan along x
     arrays, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, radiance,
                                     state=state, view_matrix=panned, motion=camera_motion(depth, projection, pan))
-    read_px = arrays["history_count"][..., 1:3]
+    read_px = arrays["history_record"][..., 1:3]
 
     # Analytic: from the camera at (pan, 0, 0), the pixel's ray meets the floor y = -1, reflects,
     # meets the wall z = -8; the wall point's mirror image in the floor, seen by the camera at
@@ -192,7 +192,7 @@ def test_hit_point_reprojection_matches_the_analytic_mirror_image(gpu_backend):
     read_px = read_px.copy()
     read_px[..., 1] = height - read_px[..., 1]
 
-    floor = (normal[..., 1] > 0.5) & (arrays["reflection"][..., 3] > 0.5) & (arrays["history_count"][..., 0] > 1)
+    floor = (normal[..., 1] > 0.5) & (arrays["reflection"][..., 3] > 0.5) & (arrays["history_record"][..., 0] > 1)
     inside = (expected_px > 1).all(-1) & (expected_px < (width - 1, height - 1)).all(-1)
     checked = floor & inside
     assert checked.sum() > 200
@@ -212,7 +212,7 @@ def test_mirror_only_cutoff_and_non_finite_radiance_stay_finite(gpu_backend):
     for _ in range(4):
         arrays, _ = run_synthetic_chain(depth, normal, roughness, projection, ChainSettings(max_roughness=0.0),
                                         radiance, state=state)
-    for name in ("reflection", "history_count"):
+    for name in ("reflection", "history_record"):
         assert np.isfinite(arrays[name]).all(), name
     confidence = arrays["reflection"][..., 3]
     assert (confidence[roughness > 0] == 0).all()

@@ -226,7 +226,8 @@ def rendered(tmp_path_factory):
     scene.collection.objects.link(camera)
     scene.camera = camera
     before = _snapshot()
-    passes = render_passes(scene, decide_render(scene, "eevee", samples=1, resolution=(8 * PIXELS_PER_UNIT, 2 * PIXELS_PER_UNIT)))
+    size = (8 * PIXELS_PER_UNIT, 2 * PIXELS_PER_UNIT)
+    passes = render_passes(scene, decide_render(scene, "eevee", samples=1, resolution=size))
     return passes, before, _snapshot()
 
 

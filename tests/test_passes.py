@@ -170,15 +170,13 @@ def test_a_run_keeps_one_black_world_and_removes_it(roughness_scene):
     lamp.location = (0, 0.5, 2)
     roughness_scene.collection.objects.link(lamp)
     worlds = set(bpy.data.worlds)
-    alone = render_passes(roughness_scene,
-                          decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render"))
+    setup = decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render")
+    alone = render_passes(roughness_scene, setup)
     assert set(bpy.data.worlds) == worlds
     with lamp_world_for_run():
-        first = render_passes(roughness_scene,
-                              decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render"))
+        first = render_passes(roughness_scene, setup)
         made = set(bpy.data.worlds) - worlds
-        second = render_passes(roughness_scene,
-                               decide_render(roughness_scene, "eevee", samples=1, resolution=(32, 32), lamp_split="render"))
+        second = render_passes(roughness_scene, setup)
         assert len(made) == 1 and set(bpy.data.worlds) - worlds == made
     assert set(bpy.data.worlds) == worlds
     assert alone.specular_direct.max() > 0, "the lamp must light the planes"

@@ -14,7 +14,7 @@ from ssr_addon.core.settings import ChainSettings
 # Mirror rays, one resolve sample, no spatial filter: a pixel's reflection is its own ray's hit.
 # 8 iterations: every pixel of each 2x2 quad starts a ray twice, averaged by the still.
 STILL = dict(use_importance_sampling=False, resolve_samples=1, use_spatial_filter=False,
-             accumulate_frames=8, noise_threshold=0.0, hiz_max_iterations=1024)
+             accumulate_iterations=8, noise_threshold=0.0, hiz_max_iterations=1024)
 
 
 def textured_radiance(shape):

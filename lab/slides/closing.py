@@ -25,7 +25,7 @@ def performance(context):
     passes = upscaled_passes(context.scene(MIRROR), COPY_PASS_LARGE)
     # One iteration a frame, as the deck's benchmark traces once per frame (and without a
     # still's first-frame accumulation, minutes at this size on a software renderer).
-    settings = replace(ChainSettings(), accumulate_frames=1, noise_threshold=0.0)
+    settings = replace(ChainSettings(), accumulate_iterations=1, noise_threshold=0.0)
     stages, inputs, state = chain_stage_ms(passes, settings, frames)
     copy_ms = copy_pass_ms(COPY_PASS_LARGE)
     queued_ms = queued_frame_ms(inputs, settings, state, frames)

@@ -29,7 +29,7 @@ def importance_sampling(context):
     for sampling, label in (("halton", "GGX lobe, Halton points"), ("random", "GGX lobe, random points"),
                             ("uniform", "Uniform over the hemisphere")):
         render, numbers[f"{sampling}_noise"] = _noise(context, ray_sampling=sampling)
-        settled, = context.chain(GLOSSY, accumulate_frames=16, noise_threshold=0.0, ray_sampling=sampling)
+        settled, = context.chain(GLOSSY, accumulate_iterations=16, noise_threshold=0.0, ray_sampling=sampling)
         numbers[f"{sampling}_noise16"] = context.noise(GLOSSY, settled, context.chain(GLOSSY, **CONVERGED)[0])
         images.append((f"{label}, one iteration", context.save(f"sampling_{sampling}.png", render.final)))
     return section("Importance Sampling: BRDF, Halton sequence", images, numbers,
@@ -89,7 +89,8 @@ def sparse_ray_tracing(context):
                    "resolution, {half_flip} at full (relative MAE {full_rel_mae}, {half_resolve_rel_mae} and "
                    "{half_rel_mae}); their mean difference from tracing every pixel, relative to its level, is "
                    "{half_resolve_gap} and {half_gap}. An iteration traced {full_rays} rays in {full_trace_ms} ms "
-                   "for every pixel and {half_rays} in {half_trace_ms} ms for a quarter; its resolve {half_resolve_resolve_ms} ms at half "
+                   "for every pixel and {half_rays} in {half_trace_ms} ms for a quarter; its resolve "
+                   "{half_resolve_resolve_ms} ms at half "
                    "resolution and {half_resolve_ms} ms at full.")
 
 

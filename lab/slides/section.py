@@ -2,9 +2,9 @@
 
 # One frame's worth of rays, nothing accumulated: one iteration (one ray per 2x2 pixels at half
 # resolution), no spatial filter, so what a sampling choice does to the noise shows unhidden.
-ONE_ITERATION = dict(accumulate_frames=1, noise_threshold=0.0, use_spatial_filter=False)
+ONE_ITERATION = dict(accumulate_iterations=1, noise_threshold=0.0, use_spatial_filter=False)
 # The same chain run until it has settled: the image the noise is measured against.
-CONVERGED = dict(accumulate_frames=64, noise_threshold=0.0)
+CONVERGED = dict(accumulate_iterations=64, noise_threshold=0.0)
 
 
 def section(title, images, numbers, caption):

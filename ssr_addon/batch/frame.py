@@ -37,7 +37,7 @@ def render_frame(scene, request, state=None):
 
     STATE (a ChainState) carries temporal history from the previous frame; the
     caller has begun the frame in it (state.begin_frame). Without one the frame
-    is a still, accumulated over `accumulate_frames` iterations.
+    is a still, accumulated over `accumulate_iterations` iterations.
     """
     timer = StageTimer(wait_for_gpu=request.time_stages)
     use_ssr = request.method == "ssr" and request.settings.use_ssr

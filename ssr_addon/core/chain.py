@@ -60,7 +60,7 @@ class ChainState:
 @dataclass
 class ChainOutputs:
     """The textures the chain's passes wrote in a frame, by resource name (the outputs of
-    gpu_passes: ray_hit, resolved, spatial, reflection, history_count, final... and, where it
+    gpu_passes: ray_hit, resolved, spatial, reflection, history_record, final... and, where it
     ran, the lamp split's), and how many jittered iterations it ran."""
     textures: dict
     iterations: int

@@ -32,7 +32,7 @@ class FrameSequence:
     """Hands out trace iterations frame by frame.
 
     Every frame is rendered like a still: a frame with no history runs
-    `accumulate_frames` iterations, one with history runs one; then it doubles
+    `accumulate_iterations` iterations, one with history runs one; then it doubles
     its iterations until its reflection settles (`noise_threshold`).
     still=True: every frame is a still (a single-frame render, a comparison
     tile), with no history from other frames. still=False: an animation: the
@@ -70,7 +70,7 @@ class FrameSequence:
         """Iterations this frame runs (before any has run)."""
         if not settings.use_temporal or self.has_history:
             return 1
-        return min(settings.accumulate_frames, MAX_ITERATIONS)
+        return min(settings.accumulate_iterations, MAX_ITERATIONS)
 
     def doubling(self, settings):
         """Iterations a frame adds to double the ones it has run (its noise_threshold is not met yet),

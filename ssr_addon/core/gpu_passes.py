@@ -203,7 +203,7 @@ TRACE = GPUPass(
     libraries=_TRACE_LIBRARIES, defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
 RESOLVE = GPUPass(
     "resolve", "resolve.glsl", stage="resolve",
-    samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_count_tx"),
+    samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx"),
     outputs=(Output("resolved_img", size="resolve", layers=(Layer("SSR Resolve", "RGBA"),)),
              Output("reflection_hit_img", size="resolve")),
     libraries=("common_lib.glsl", "ggx_lib.glsl", "history_lib.glsl"), defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
@@ -213,21 +213,21 @@ RESOLVE_UPSCALE = GPUPass("resolve_upscale", "resolve_upscale.glsl", stage="reso
                           runs=_resolves_at_half)
 DENOISE_SPATIAL = GPUPass(
     "denoise_spatial", "denoise_spatial.glsl", stage="spatial",
-    samplers=("resolved_tx", "reflection_hit_tx", "depth_tx", "normal_tx", "roughness_tx", "history_count_tx"),
+    samplers=("resolved_tx", "reflection_hit_tx", "depth_tx", "normal_tx", "roughness_tx", "history_record_tx"),
     outputs=(Output("spatial_img", layers=(Layer("SSR Spatial", "RGBA"),)),),
     libraries=("common_lib.glsl", "ggx_lib.glsl", "history_lib.glsl"),
     runs=lambda frame: frame.settings.use_spatial_filter, skipped=(("spatial", "resolved"),))
 TEMPORAL = GPUPass(
     "temporal", "temporal.glsl", stage="temporal",
     samplers=("spatial_tx", "reflection_hit_tx", "depth_tx", "motion_tx", "radiance_tx", "previous_radiance_tx",
-              "history_tx", "history_count_tx"),
+              "history_tx", "history_record_tx"),
     outputs=(Output("reflection_img", history="history_tx", layers=(
                  Layer("SSR Reflection", "RGB", view=DebugView("REFLECTION", "Reflection",
                                                                "Reflected radiance alone")),
                  Layer("SSR Confidence", "V", channels=(3,), view=DebugView(
                      "CONFIDENCE", "Confidence",
                      "How much of each pixel's reflection came from a ray hit (white: all)")))),
-             Output("history_count_img", history="history_count_tx", layers=(
+             Output("history_record_img", history="history_record_tx", layers=(
                  Layer("SSR History Weight", "V", channels=(0,), convert=history_weight),))),
     defines=(("STATIC_HISTORY_FRAMES", f"{MAX_ITERATIONS}.0"),),
     runs=lambda frame: frame.settings.use_temporal, skipped=(("reflection", "spatial"),))

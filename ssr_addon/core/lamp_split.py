@@ -21,7 +21,8 @@ from .ggx import sample_visible_normals, stratified_points, visible_normal_weigh
 from .gpu_backend import upload
 from .uniforms import LAMP_BLOCK, LAMP_SHAPES
 
-STRATA_PER_SIDE = 12  # 12x12 points per sampling strategy: within 2 % of a Monte Carlo integral over a highlight (test_analytic_lamps)
+# 12x12 points per sampling strategy: within 2 % of a Monte Carlo integral over a highlight (test_analytic_lamps).
+STRATA_PER_SIDE = 12
 MIN_ALPHA = 2e-3  # GGX alpha floor: below it float32 cannot hold the peak of D
 ALBEDO_TABLE_SIZE = 32
 

@@ -84,7 +84,7 @@ class ChainSettings:
         group="temporal")
     temporal_weight: float = _setting(
         0.9, "Largest share of the history in a temporally filtered pixel", 0.0, 0.99, group="temporal")
-    accumulate_frames: int = _setting(
+    accumulate_iterations: int = _setting(
         16, "Jittered iterations a frame accumulates when it has no history (a still, an animation's first "
             "frame); a frame with history traces one", 1, 256, group="temporal")
     noise_threshold: float = _setting(
@@ -167,11 +167,11 @@ STAGE_TOGGLES = ("use_hiz", "use_importance_sampling", "half_resolution", "use_c
 
 PRESETS = {
     "draft": {"half_resolution": True, "resolve_samples": 4, "expensive_ray_budget": 0.1,
-              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_frames": 4,
+              "trace_steps": 32, "trace_stride": 4.0, "hiz_max_iterations": 48, "accumulate_iterations": 4,
               "noise_threshold": 0.0},
     "balanced": {},
     "high": {"half_resolution": False, "resolve_samples": 9, "expensive_ray_budget": 1.0,
-             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_frames": 64,
+             "trace_steps": 128, "trace_stride": 1.0, "hiz_max_iterations": 192, "accumulate_iterations": 64,
              "noise_threshold": 0.01},
 }
 

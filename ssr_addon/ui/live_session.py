@@ -1,8 +1,8 @@
 """Live SSR in one 3D View: capture once the view holds still, then refine step by step.
 
 A LiveSession is driven by `tick` (from a timer, never from a draw callback, where
-EEVEE cannot draw offscreen) and drawn by `draw` (a POST_PIXEL handler). Neither
-reads bpy.context: the caller hands in the scene and the time.
+EEVEE cannot draw offscreen); its `texture` is what ui.live's POST_PIXEL handler draws
+over the view. It never reads bpy.context: the caller hands in the scene and the time.
 
 - While the view, the scene or a setting keeps changing, nothing is drawn: a stale
   image over a moving view misleads more than none.
@@ -52,7 +52,7 @@ class LiveSession:
         self._view = None            # its ProgressiveView (None in a baseline mode)
         self._passes = None
         self.display = DisplayTransform()
-        self._image = None           # what draw shows, scene linear: (texture, through the view transform)
+        self._image = None           # what is shown, scene linear: (texture, through the view transform)
         self._texture = None         # the same, display encoded
         self._shown = None           # (debug view, colour management) of what is shown
         self._capture_ms = 0.0
@@ -86,7 +86,7 @@ class LiveSession:
                 settings.planar_object)
 
     def tick(self, scene, now=None):
-        """Advance the session; returns True when what draw shows has changed. Raises SSRError
+        """Advance the session; returns True when what is shown has changed. Raises SSRError
         when the session cannot go on (problem)."""
         now = time.perf_counter() if now is None else now
         problem = self.problem(scene)

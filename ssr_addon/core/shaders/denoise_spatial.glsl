@@ -5,7 +5,7 @@
  *
  * Inputs:  resolved_tx (resolve: premultiplied radiance, confidence),
  *          reflection_hit_tx (mean hit distance, mean hit uv), depth_tx, normal_tx, roughness_tx,
- *          history_count_tx (iterations the temporal history holds, history_lib.glsl).
+ *          history_record_tx (iterations the temporal history holds, history_lib.glsl).
  * Output:  spatial_img (premultiplied radiance, confidence).
  *
  * Each pixel averages a 5x5 grid of neighbours spread over the screen footprint

@@ -5,7 +5,7 @@
  * scales that up.
  *
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
- *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_count_tx
+ *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_record_tx
  *          (iterations the temporal history holds, history_lib.glsl).
  * Outputs: resolved_img     = (reflected radiance * confidence, confidence),
  *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.

@@ -7,9 +7,9 @@
  * Inputs:  spatial_tx (this frame's, spatially filtered, premultiplied), reflection_hit_tx
  *          (mean hit distance and uv), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
  *          radiance_tx and previous_radiance_tx (the lit scene now and in the history's frame),
- *          history_tx (last output: premultiplied radiance, confidence), history_count_tx (frames in it).
+ *          history_tx (last output: premultiplied radiance, confidence), history_record_tx (its record).
  * Outputs: reflection_img (premultiplied radiance, confidence),
- *          history_count_img (frames accumulated; where the history was read, in pixels;
+ *          history_record_img (frames accumulated; where the history was read, in pixels;
  *                     motion seen: the larger Vector-pass length at the pixel and at its hit).
  *
  * Where the camera did not move a pixel (its history lies exactly where it is)
@@ -114,7 +114,7 @@ void main()
   vec4 hit = texelFetch(reflection_hit_tx, pixel, 0);
   float motion = motion_seen(pixel, hit);
   reflection_img = current;
-  history_count_img = vec4(1.0, 0.0, 0.0, motion);
+  history_record_img = vec4(1.0, 0.0, 0.0, motion);
   float depth = texelFetch(depth_tx, pixel, 0).r;
   if (params.history_mode == HISTORY_MODE_NONE || is_background(depth)) {
     return;
@@ -125,7 +125,7 @@ void main()
     return; /* off screen last frame (or not a number): no history */
   }
   vec4 history = textureLod(history_tx, previous_uv, 0.0);
-  vec4 history_record = textureLod(history_count_tx, previous_uv, 0.0);
+  vec4 history_record = textureLod(history_record_tx, previous_uv, 0.0);
   float history_count = history_record.x;
   if (!is_finite(history) || !(history_count >= 1.0)) {
     return;
@@ -141,5 +141,5 @@ void main()
   float most_frames = holds_still ? STATIC_HISTORY_FRAMES : params.history_frames;
   float count = min(history_count + 1.0, most_frames);
   reflection_img = mix(history, current, 1.0 / count);
-  history_count_img = vec4(count, previous_uv * params.viewport_size, motion);
+  history_record_img = vec4(count, previous_uv * params.viewport_size, motion);
 }
