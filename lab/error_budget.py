@@ -83,8 +83,9 @@ def main(argv):
     width, height = arguments.resolution
     text = "\n".join([
         f"Latest run: `python -m lab error-budget --scenes {' '.join(arguments.scenes)} "
-        f"--frame {arguments.frame} --resolution {width}x{height}{' --page docs/measurements.md' if arguments.page else ''}`"
-        f": FLIP on the reflective pixels of a still of frame {arguments.frame} against the bench's Cycles reference ({REFERENCE_SAMPLES} samples); in brackets "
+        f"--frame {arguments.frame} --resolution {width}x{height}"
+        f"{' --page docs/measurements.md' if arguments.page else ''}`: FLIP on the reflective pixels of a still of "
+        f"frame {arguments.frame} against the bench's Cycles reference ({REFERENCE_SAMPLES} samples); in brackets "
         f"as a multiple of EEVEE's ray tracing (the goal: at most {GOAL}). Ours on Cycles' passes: "
         f"{CYCLES_SAMPLES} samples.", "", *table(rows)])
     print(text)

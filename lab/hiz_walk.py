@@ -20,7 +20,7 @@ import os
 from ssr_addon.core.chain import chain_params, frame_context
 from ssr_addon.core.frame_sequence import Iteration
 from ssr_addon.core.gpu_backend import TexturePool, download, empty_texture
-from ssr_addon.core.gpu_passes import HIZ_DOWNSAMPLE, PYRAMID_PACK, GPUPass, Output
+from ssr_addon.core.gpu_passes import COMMON_LIBRARIES, HIZ_DOWNSAMPLE, PYRAMID_PACK, GPUPass, Output
 from ssr_addon.core.pyramids import build_pyramid
 from ssr_addon.core.uniforms import HISTORY_MODES, HIZ_VISITS
 
@@ -30,7 +30,7 @@ WALK_ENDS = {"no ray": -1, "miss": 0, "hit": 1}  # how the walk ended: hiz_walk.
 HIZ_WALK = GPUPass(
     "hiz_walk", "hiz_walk.glsl", samplers=("depth_tx", "normal_tx", "hiz_tx"),
     outputs=(Output("walk_img"), Output("walk_span_img"), Output("walk_ray_img")),
-    libraries=("common_lib.glsl", "screen_ray_lib.glsl", "surface_ray_lib.glsl", "hiz_walk_lib.glsl",
+    libraries=(*COMMON_LIBRARIES, "screen_ray_lib.glsl", "surface_ray_lib.glsl", "hiz_walk_lib.glsl",
                "hiz_march_lib.glsl"),
     defines=tuple((f"WALK_END_{name.upper().replace(' ', '_')}", f"{code}.0") for name, code in WALK_ENDS.items()),
     push_constants=(("IVEC2", "walk_pixel"),), directory=os.path.join(os.path.dirname(__file__), "shaders"))

@@ -15,7 +15,7 @@ import bpy
 import numpy as np
 from mathutils import Vector
 
-from ssr_addon.core.ggx import sample_visible_normals, stratified_points, visible_normal_weight
+from ssr_addon.core.ggx import ggx_alpha, sample_visible_normals, stratified_points, visible_normal_weight
 from ssr_addon.core.settings import ChainSettings
 
 SEEN_DEPTH_TOLERANCE = 0.03  # relative: the depth pass is an anti-aliased mean, not one surface
@@ -65,7 +65,7 @@ def ideal_screen_space(scene, passes, samples=64, max_roughness=ChainSettings().
         view_local = frame.T @ -incident
         if not found or view_local[2] <= 1e-4:
             continue
-        alpha = max(float(passes.roughness[row, column]) ** 2, 1e-3)
+        alpha = float(ggx_alpha(passes.roughness[row, column]))
         half = sample_visible_normals(view_local[None, None], np.array([[alpha]]), (pattern + rng.random(2)) % 1.0)[0]
         light_local = 2 * (half @ view_local)[:, None] * half - view_local
         weights = visible_normal_weight(view_local[2], light_local[:, 2], alpha ** 2)

@@ -70,7 +70,8 @@ def main(argv):
              f"EEVEE at 16 samples. Error: relative mean absolute difference from `lamp_split=render` on the "
              f"reflective pixels (goal: at most {GOAL:.0%}).", "",
              "| scene | " + " | ".join(f"{split} ms" for split in SPLITS) + " | "
-             + " | ".join(f"{split}: lamp highlights error | {split}: final image error" for split in APPROXIMATE) + " |",
+             + " | ".join(f"{split}: lamp highlights error | {split}: final image error" for split in APPROXIMATE)
+             + " |",
              "|---" * (1 + len(SPLITS) + 2 * len(APPROXIMATE)) + "|"]
     for row in rows:
         cells = [f"{row['ms'][split]:.1f}" for split in SPLITS]

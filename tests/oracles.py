@@ -7,6 +7,8 @@ import math
 
 import numpy as np
 
+from ssr_addon.core.ggx import ggx_alpha
+
 F32 = np.float32
 
 
@@ -230,7 +232,7 @@ def dfg_table(size, u1, u2):
 
 def _dfg_row(n_dot_v, roughness, u1, u2):
     n_dot_v = n_dot_v[:, None]
-    alpha = max(roughness ** 2, 1e-3)
+    alpha = float(ggx_alpha(roughness))
     cos_theta = np.sqrt((1 - u1) / (1 + (alpha ** 2 - 1) * u1))[None]
     sin_theta = np.sqrt(1 - cos_theta ** 2)
     phi = 2 * np.pi * u2[None]

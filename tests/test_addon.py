@@ -653,6 +653,17 @@ INSTALL_AND_ENABLE = textwrap.dedent("""
     cli = importlib.import_module(module + ".ssr_addon.batch.cli")
     cli.main(["render", sys.argv[2], "--method", "none", "--resolution", "32x18", "--out", sys.argv[3]])
     state["enabled_after_cli"] = module in bpy.context.preferences.addons and hasattr(bpy.types.Scene, "ssr")
+    # Every render operator of the installed add-on, on the scene the command line loaded.
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y, scene.eevee.taa_render_samples = 32, 18, 1
+    scene.frame_start = scene.frame_end = scene.frame_current
+    scene.render.filepath = sys.argv[3] + "/operators/take_"
+    state["operators"] = {name: sorted(getattr(bpy.ops.render, name)(**kwargs)) for name, kwargs in (
+        ("ssr_apply_preset", {"preset": "draft"}), ("ssr_render_frame", {}), ("ssr_setup_compositor", {}),
+        ("ssr_compare", {}), ("ssr_render_animation", {}))}
+    # What a render loads: none of the lab's measuring packages.
+    state["lab_modules"] = sorted(name for name in sys.modules
+                                  if name.split(".")[0] in ("lab", "matplotlib", "flip_evaluator", "skimage"))
     addon_utils.disable(module)
     state["disabled_cleanly"] = not hasattr(bpy.types.Scene, "ssr") and not hasattr(bpy.types, "RENDER_PT_ssr")
     print("STATE " + json.dumps(state))
@@ -672,6 +683,7 @@ def test_built_extension_installs_enables_and_disables(tmp_path):
     shipped_extras = {name for name in os.listdir(REPO) if name.startswith(("README", "LICENSE"))}
     assert {"LICENSE", "README.md"} <= shipped_extras, "the manifest's GPL-3.0 needs its text in the zip"
     assert names == {"__init__.py", "blender_manifest.toml"} | add_on_sources | shipped_extras
+    assert not any(name.startswith(("lab/", "tests/", "test_scenes/")) for name in names), "the lab does not ship"
 
     user_dir = tmp_path / "user"
     script = tmp_path / "install.py"
@@ -682,9 +694,14 @@ def test_built_extension_installs_enables_and_disables(tmp_path):
     lines = [line for line in result.stdout.splitlines() if line.startswith("STATE ")]
     assert lines, result.stdout + result.stderr
     state = json.loads(lines[-1][len("STATE "):])
+    finished = ["FINISHED"]
     assert state == {"enabled": True, "scene_property": True, "operator": True,
-                     "thickness": pytest.approx(0.2), "enabled_after_cli": True, "disabled_cleanly": True}
+                     "thickness": pytest.approx(0.2), "enabled_after_cli": True, "disabled_cleanly": True,
+                     "operators": dict.fromkeys(("ssr_apply_preset", "ssr_render_frame", "ssr_setup_compositor",
+                                                 "ssr_compare", "ssr_render_animation"), finished),
+                     "lab_modules": []}
     assert (tmp_path / "cli_out" / "frame_0001.exr").is_file()
+    assert (tmp_path / "cli_out" / "operators" / "report.json").is_file()
     assert (user_dir / "extensions" / "user_default" / "stochastic_ssr" / "ssr_addon" / "core" / "shaders").is_dir()
 
 

@@ -17,12 +17,12 @@ pytestmark = pytest.mark.blender
 
 @pytest.fixture(scope="module")
 def gpu_table(gpu_backend):
-    from ssr_addon.core.chain import ChainState
+    """The FG table the chain composites with, after it has run a frame."""
     from ssr_addon.core.gpu_backend import download
+    from ssr_addon.core.gpu_passes import dfg_table as chain_dfg_table
     depth, normal, projection = facing_plane(8, 8)
-    state = ChainState.still()
-    run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, ChainSettings(), state=state)
-    return download(state.dfg_tx)[::-1, :, :2]  # rows: roughness upwards, as the numpy table
+    run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, ChainSettings())
+    return download(chain_dfg_table())[::-1, :, :2]  # rows: roughness upwards, as the numpy table
 
 
 def test_dfg_table_matches_numpy_on_the_same_points(gpu_table):
@@ -54,13 +54,14 @@ def test_fg_from_the_f0_aov_matches_eevee_specular_colour(gpu_backend):
     np.testing.assert_allclose(passes.f0[sphere], np.broadcast_to((0.95, 0.8, 0.6), passes.f0[sphere].shape),
                                atol=5e-3)
     from ssr_addon.core.chain import ChainState, run_chain
-    from ssr_addon.core.inputs import ChainInputs
     from ssr_addon.core.gpu_backend import download
+    from ssr_addon.core.gpu_passes import dfg_table as chain_dfg_table
+    from ssr_addon.core.inputs import ChainInputs
     settings = ChainSettings(accumulate_iterations=1)
     state = ChainState.still()
     state.begin_frame(1)
     run_chain(ChainInputs.from_passes(passes, settings), settings, state)
-    table = download(state.dfg_tx)[::-1, :, :2]
+    table = download(chain_dfg_table())[::-1, :, :2]
     # FG per pixel: F0 * A + B at the pixel's n.v and roughness (nearest texel).
     view = passes.view_matrix[:3, :3] @ passes.normal.reshape(-1, 3).T
     from oracles import view_positions

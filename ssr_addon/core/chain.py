@@ -20,7 +20,7 @@ from .convergence import ConvergenceCheck
 from .frame_sequence import FrameSequence
 from .gpu_backend import TexturePool, lap, uniform_buffer
 from .inputs import BACKGROUND_DEPTH
-from .lamp_split import albedo_texture, lamp_block
+from .lamp_split import lamp_block
 from .pyramids import build_pyramid
 from .uniforms import HISTORY_MODES, MAX_PYRAMID_LEVELS, RAY_SAMPLING_CODES
 
@@ -34,7 +34,6 @@ class ChainState:
     previous_world_to_clip: np.ndarray = None
     previous_radiance_tx: object = None   # the last frame's lit scene: what its reflections showed
     convergence: ConvergenceCheck = field(default_factory=ConvergenceCheck)  # holds the last check's reflection
-    dfg_tx: object = None                 # the FG table, computed once
 
     @classmethod
     def still(cls):
@@ -157,8 +156,7 @@ class FrameRun:
         self.frame = frame = frame_context(inputs, settings, state, timer)
         self.resources = dict(inputs.textures)
         self.produced = {}  # the resources this frame's passes wrote: ChainOutputs
-        if inputs.lamps is not None:
-            self.resources["albedo"] = albedo_texture()
+        self.resources["dfg"] = gpu_passes.dfg_table()  # read by the lamp split and the composite
         lamps = (("lamp_block", lamp_block(inputs.lamps, frame.size, inputs.view_matrix, inputs.projection_matrix,
                                            BACKGROUND_DEPTH)),) if inputs.lamps is not None else ()
         for gpu_pass in gpu_passes.FRAME_PASSES:
@@ -223,10 +221,6 @@ class FrameRun:
                 f"{gpu_passes.TEMPORAL.name}.{output.name}{iteration.read_slot}", frame.size) \
                 if has_history else resources["depth"]
         self.blocks = (("params", chain_params(frame, iteration, HISTORY_MODES[mode], previous)),)
-        if state.dfg_tx is None:
-            self.run(gpu_passes.DFG_TABLE, self.blocks)
-            state.dfg_tx = resources["dfg"]
-        resources["dfg"] = state.dfg_tx
         for gpu_pass in gpu_passes.ITERATION_PASSES:
             self.run(gpu_pass, self.blocks, write_slot=iteration.write_slot)
         state.previous_world_to_clip = frame.world_to_clip

@@ -1,8 +1,18 @@
-"""The GGX lobe in numpy: visible-normal sampling (Heitz 2018) and its Smith weight, for the
-tables and Monte Carlo estimates computed on the CPU."""
+"""The GGX lobe: the alpha floor every pass and estimate shares (ggx_lib.glsl is compiled with
+it), and in numpy visible-normal sampling (Heitz 2018) and its Smith weight, for the Monte
+Carlo estimates computed on the CPU. alpha = roughness^2, as in Blender's Principled BSDF."""
 import math
 
 import numpy as np
+
+# The GGX alpha floor: a mirror is a lobe this narrow (a narrower one's peak no longer fits a
+# float32 D and its edges no longer resolve in a half-vector's cosine).
+MIN_ALPHA = 1e-3
+
+
+def ggx_alpha(roughness):
+    """The GGX alpha of ROUGHNESS (a number or an array), at least MIN_ALPHA."""
+    return np.maximum(np.asarray(roughness, np.float64) ** 2, MIN_ALPHA)
 
 
 def stratified_points(count):

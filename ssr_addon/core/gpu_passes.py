@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .frame_sequence import MAX_ITERATIONS
-from .gpu_backend import FullscreenPass
+from .ggx import MIN_ALPHA
+from .gpu_backend import FullscreenPass, empty_texture
 from .uniforms import glsl_struct, lamp_block_glsl
 
 SHADER_DIR = os.path.join(os.path.dirname(__file__), "shaders")
@@ -30,6 +31,9 @@ LUT_SIZE = 65                             # display LUT lattice points per chann
 # Stops of scene-linear light the display LUT spans (its first point is 0). 1.0, where the
 # Standard view clips, falls on a lattice point: interpolating across that bend costs 5 steps.
 LUT_LOG2_MIN, LUT_LOG2_MAX = -15.0, 9.0
+# The camera and helpers every params pass shares; the defines a library is compiled with.
+COMMON_LIBRARIES = ("view_lib.glsl", "common_lib.glsl")
+LIBRARY_DEFINES = {"ggx_lib.glsl": (("MIN_ALPHA", repr(MIN_ALPHA)),)}
 
 
 @dataclass(frozen=True)
@@ -89,7 +93,7 @@ class GPUPass:
     stage: str = None
     samplers: tuple = ()
     outputs: tuple = ()
-    libraries: tuple = ("common_lib.glsl",)
+    libraries: tuple = COMMON_LIBRARIES
     defines: tuple = ()            # (name, value)
     push_constants: tuple = ()     # (type, name)
     uniform_block: str = "params"  # "params", "lamp_block" (uniforms.LAMP_BLOCK) or None
@@ -133,7 +137,8 @@ def compiled(gpu_pass):
                 info.uniform_buf(0, "SSRParams", "params")
             elif gpu_pass.uniform_block == "lamp_block":
                 info.uniform_buf(0, "LampBlock", "lamp_block")
-            for name, value in gpu_pass.defines:
+            library_defines = (define for library in gpu_pass.libraries for define in LIBRARY_DEFINES.get(library, ()))
+            for name, value in (*library_defines, *gpu_pass.defines):
                 info.define(name, value)
             for kind, constant in gpu_pass.push_constants:
                 info.push_constant(kind, constant)
@@ -149,8 +154,9 @@ def compiled(gpu_pass):
 
 
 def release_passes():
-    """Drop the compiled shaders (on add-on unregister)."""
+    """Drop the compiled shaders and the tables drawn with them (on add-on unregister)."""
     _compiled.clear()
+    dfg_table.cache_clear()
 
 
 def history_weight(count):
@@ -160,7 +166,7 @@ def history_weight(count):
 
 # --- the chain's passes, in the order of the slides -------------------------------------------------------------
 
-_TRACE_LIBRARIES = ("common_lib.glsl", "screen_ray_lib.glsl", "surface_ray_lib.glsl", "linear_march_lib.glsl",
+_TRACE_LIBRARIES = (*COMMON_LIBRARIES, "screen_ray_lib.glsl", "surface_ray_lib.glsl", "linear_march_lib.glsl",
                     "hiz_march_lib.glsl", "ggx_lib.glsl")
 # Where a pyramid level reads its source and draws itself (pyramids.build_pyramid).
 _PYRAMID_LEVEL = (("IVEC2", "source_offset"), ("IVEC2", "source_size"), ("IVEC2", "level_offset"))
@@ -172,9 +178,9 @@ def _resolves_at_half(frame):
 
 LAMP_SPLIT = GPUPass(
     "lamp_split", "lamp_split.glsl", stage="lamp_split",
-    samplers=("depth_tx", "normal_tx", "roughness_tx", "albedo_tx", "specular_light_tx", "shadow_tx"),
+    samplers=("depth_tx", "normal_tx", "roughness_tx", "dfg_tx", "specular_light_tx", "shadow_tx"),
     outputs=(Output("specular_direct_img"), Output("specular_indirect_img")),
-    libraries=("ggx_lib.glsl",), uniform_block="lamp_block",
+    libraries=("view_lib.glsl", "ggx_lib.glsl", "dfg_lib.glsl"), uniform_block="lamp_block",
     runs=lambda frame: frame.inputs.lamps is not None)
 HIZ_DOWNSAMPLE = GPUPass("hiz_downsample", "pyramid_downsample.glsl", stage="hiz", samplers=("source_tx",),
                          outputs=(Output("level_img", channels=1),), libraries=(), defines=(("REDUCE_MIN", ""),),
@@ -206,7 +212,7 @@ RESOLVE = GPUPass(
     samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx"),
     outputs=(Output("resolved_img", size="resolve", layers=(Layer("SSR Resolve", "RGBA"),)),
              Output("reflection_hit_img", size="resolve")),
-    libraries=("common_lib.glsl", "ggx_lib.glsl", "history_lib.glsl"), defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
+    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"), defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
 RESOLVE_UPSCALE = GPUPass("resolve_upscale", "resolve_upscale.glsl", stage="resolve",
                           samplers=("resolved_tx", "reflection_hit_tx"),
                           outputs=(Output("resolved_img"), Output("reflection_hit_img")), libraries=(),
@@ -215,7 +221,7 @@ DENOISE_SPATIAL = GPUPass(
     "denoise_spatial", "denoise_spatial.glsl", stage="spatial",
     samplers=("resolved_tx", "reflection_hit_tx", "depth_tx", "normal_tx", "roughness_tx", "history_record_tx"),
     outputs=(Output("spatial_img", layers=(Layer("SSR Spatial", "RGBA"),)),),
-    libraries=("common_lib.glsl", "ggx_lib.glsl", "history_lib.glsl"),
+    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"),
     runs=lambda frame: frame.settings.use_spatial_filter, skipped=(("spatial", "resolved"),))
 TEMPORAL = GPUPass(
     "temporal", "temporal.glsl", stage="temporal",
@@ -232,13 +238,23 @@ TEMPORAL = GPUPass(
     defines=(("STATIC_HISTORY_FRAMES", f"{MAX_ITERATIONS}.0"),),
     runs=lambda frame: frame.settings.use_temporal, skipped=(("reflection", "spatial"),))
 DFG_TABLE = GPUPass("dfg_table", "dfg_table.glsl", outputs=(Output("dfg_img", size=(DFG_SIZE, DFG_SIZE)),),
-                    libraries=("common_lib.glsl", "ggx_lib.glsl"),
+                    libraries=("ggx_lib.glsl",), uniform_block=None,
                     defines=(("DFG_SIZE", str(DFG_SIZE)), ("DFG_SAMPLES", str(DFG_SAMPLES))))
+
+
+@functools.lru_cache(maxsize=1)
+def dfg_table():
+    """The FG table as a texture, drawn once per process (it depends on nothing but GGX)."""
+    texture = empty_texture(DFG_TABLE.outputs[0].size)
+    DFG_TABLE.draw([texture])
+    return texture
+
+
 COMPOSITE = GPUPass(
     "composite", "composite.glsl", stage="composite",
     samplers=("combined_tx", "specular_color_tx", "specular_indirect_tx", "reflection_tx", "f0_tx", "dfg_tx",
               "depth_tx", "normal_tx", "roughness_tx"),
-    outputs=(Output("final_img"),))
+    outputs=(Output("final_img"),), libraries=(*COMMON_LIBRARIES, "dfg_lib.glsl"))
 CONVERGENCE_TILES = GPUPass("convergence_tiles", "convergence_tiles.glsl", stage="convergence",
                             samplers=("before_tx", "after_tx"), outputs=(Output("tiles_img"),), libraries=(),
                             defines=(("CONVERGENCE_TILE", str(CONVERGENCE_TILE)),), uniform_block=None)

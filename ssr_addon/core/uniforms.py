@@ -84,7 +84,6 @@ LAMP_BLOCK_FIELDS = (
     ("mat4", "view_to_world", "inverse camera view matrix"),
     ("vec2", "viewport_size", "pixels"),
     ("float", "background_depth", "depth at or past it is the world"),
-    ("float", "min_alpha", "GGX alpha floor"),
     ("int", "lamp_count", "lamps in use"),
     ("int", "strata_per_side", "each sampling strategy takes this squared stratified points"),
     (f"LampData[{MAX_LAMPS}]", "lamps", ""),

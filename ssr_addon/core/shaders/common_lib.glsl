@@ -1,8 +1,5 @@
-/* Helpers shared by the passes: view-space reconstruction from the depth pass,
- * hashing, and pyramid atlas access.
- * The depth pass holds distance along the view axis (positive), so a view-space
- * position is the point on the pixel's camera ray at z = -depth; this works for
- * perspective and orthographic cameras alike. */
+/* Helpers shared by the passes: the frame's camera (view_lib.glsl through params),
+ * hashing, and pyramid atlas access. */
 
 #define M_PI 3.14159265358979
 
@@ -31,18 +28,14 @@ bool is_background(float depth)
 /* Camera ray through a screen position (uv in [0,1]^2): near-plane point and direction. */
 void camera_ray(vec2 uv, out vec3 ray_origin, out vec3 ray_direction)
 {
-  vec2 ndc = uv * 2.0 - 1.0;
-  vec4 near_point = params.clip_to_view * vec4(ndc, -1.0, 1.0);
-  vec4 far_point = params.clip_to_view * vec4(ndc, 1.0, 1.0);
-  ray_origin = near_point.xyz / near_point.w;
-  ray_direction = far_point.xyz / far_point.w - ray_origin;
+  camera_ray_of(params.clip_to_view, uv, ray_origin, ray_direction);
 }
 
 vec3 view_position(vec2 uv, float depth)
 {
   vec3 origin, direction;
   camera_ray(uv, origin, direction);
-  return origin + direction * ((-depth - origin.z) / direction.z);
+  return ray_point_at_depth(origin, direction, depth);
 }
 
 vec3 view_incident(vec2 uv)

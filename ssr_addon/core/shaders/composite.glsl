@@ -26,10 +26,7 @@
 
 vec3 fg_term(vec3 f0, float n_dot_v, float roughness)
 {
-  /* Texel i holds (i + 0.5) / N: map [0.5/N, 1 - 0.5/N] onto the texel centres. */
-  vec2 table_size = vec2(textureSize(dfg_tx, 0));
-  vec2 coordinate = clamp(vec2(n_dot_v, roughness), 0.5 / table_size, 1.0 - 0.5 / table_size);
-  vec2 scale_bias = textureLod(dfg_tx, coordinate, 0.0).xy;
+  vec2 scale_bias = dfg_lookup(n_dot_v, roughness);
   return f0 * scale_bias.x + scale_bias.y;
 }
 

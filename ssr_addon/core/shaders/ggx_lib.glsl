@@ -5,7 +5,7 @@
 #ifndef M_PI
 #  define M_PI 3.14159265358979
 #endif
-#define MIN_ALPHA 1e-3
+/* MIN_ALPHA, the alpha floor, is core.ggx.MIN_ALPHA (gpu_passes defines it with this file). */
 
 float ggx_alpha(float roughness)
 {

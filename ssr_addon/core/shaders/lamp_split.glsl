@@ -3,8 +3,8 @@
  * computes what the light holds of each lamp and splits it off, inside the chain, from
  * textures it has uploaded anyway: no second, lamps-only render, and nothing read back.
  *
- * Inputs:  depth_tx (view depth), normal_tx (world normal), roughness_tx, albedo_tx
- *          (the GGX lobe's reflectance with F = 1 over n.v and roughness), specular_light_tx
+ * Inputs:  depth_tx (view depth), normal_tx (world normal), roughness_tx, dfg_tx
+ *          (the FG table, whose A + B is the GGX lobe's reflectance: dfg_lib.glsl), specular_light_tx
  *          (EEVEE's Specular Light), shadow_tx (EEVEE's Shadow pass), and the lamps in
  *          lamp_block (blender/lights.py reads them as EEVEE sets its lights up).
  * Outputs: specular_direct_img = (the lamps' specular light, shadowed, 1),
@@ -27,12 +27,9 @@ struct Emitter {
 
 vec3 world_position(vec2 uv, float depth, out vec3 towards_camera)
 {
-  vec2 ndc = uv * 2.0 - 1.0;
-  vec4 near_point = lamp_block.clip_to_view * vec4(ndc, -1.0, 1.0);
-  vec4 far_point = lamp_block.clip_to_view * vec4(ndc, 1.0, 1.0);
-  vec3 origin = near_point.xyz / near_point.w;
-  vec3 direction = far_point.xyz / far_point.w - origin;
-  vec3 view_point = origin + direction * ((-depth - origin.z) / direction.z);
+  vec3 origin, direction;
+  camera_ray_of(lamp_block.clip_to_view, uv, origin, direction);
+  vec3 view_point = ray_point_at_depth(origin, direction, depth);
   towards_camera = normalize(-mat3(lamp_block.view_to_world) * direction);
   return (lamp_block.view_to_world * vec4(view_point, 1.0)).xyz;
 }
@@ -169,12 +166,11 @@ vec3 lamp_light(ivec2 texel, float depth)
   vec3 position = world_position(uv, depth, v);
   vec3 n = normalize(texelFetch(normal_tx, texel, 0).xyz);
   float roughness = clamp(texelFetch(roughness_tx, texel, 0).r, 0.0, 1.0);
-  float alpha = max(roughness * roughness, lamp_block.min_alpha);
+  float alpha = ggx_alpha(roughness);
   mat3 frame = tangent_frame(n);
   float n_dot_v = clamp(dot(n, v), 1e-4, 1.0);
-  vec2 table_size = vec2(textureSize(albedo_tx, 0));
-  vec2 coordinate = clamp(vec2(n_dot_v, roughness), 0.5 / table_size, 1.0 - 0.5 / table_size);
-  float albedo = max(textureLod(albedo_tx, coordinate, 0.0).r, 1e-4);
+  vec2 scale_bias = dfg_lookup(n_dot_v, roughness);
+  float albedo = max(scale_bias.x + scale_bias.y, 1e-4);
   vec3 light = vec3(0.0);
   for (int index = 0; index < lamp_block.lamp_count; index++) {
     LampData lamp = lamp_block.lamps[index];
