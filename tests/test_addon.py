@@ -29,7 +29,7 @@ from ssr_addon.core import gpu_passes
 from ssr_addon.core.layers import DEBUG_VIEW_LAYERS, exr_channels, frame_layers
 from ssr_addon.core.settings import SETTINGS_SCHEMA, ChainSettings
 from ssr_addon.ui import live, operators, overlay, panels
-from ssr_addon.ui import properties as scene_settings
+from ssr_addon.ui import properties as ui_properties
 
 pytestmark = pytest.mark.blender
 
@@ -137,7 +137,7 @@ def _addon_state():
     return {
         "types": set(dir(bpy.types)),
         "scene_ssr": hasattr(bpy.types.Scene, "ssr"),
-        "property_group": scene_settings.SSRSceneSettings.is_registered,
+        "property_group": ui_properties.SSRSceneSettings.is_registered,
         "ops": set(dir(bpy.ops.render)),
         "app_handlers": {name: len(getattr(bpy.app.handlers, name)) for name in dir(bpy.app.handlers)
                          if isinstance(getattr(bpy.app.handlers, name), list)},
@@ -178,7 +178,7 @@ def test_property_group_has_every_schema_field_with_its_default(addon):
         assert prop.default == pytest.approx(spec.default, rel=1e-6), spec.name
         if spec.metadata["min"] is not None:
             assert (prop.hard_min, prop.hard_max) == pytest.approx((spec.metadata["min"], spec.metadata["max"]))
-    assert scene_settings.chain_settings(bpy.context.scene.ssr) == _float32(ChainSettings())
+    assert ui_properties.chain_settings(bpy.context.scene.ssr) == _float32(ChainSettings())
 
 
 def _float32(chain):
@@ -212,7 +212,7 @@ def test_chain_settings_round_trip(addon):
     assert expected != ChainSettings()
     for spec in SETTINGS_SCHEMA:
         setattr(scene_settings, spec.name, getattr(expected, spec.name))
-    assert scene_settings.chain_settings(scene_settings) == _float32(expected)
+    assert ui_properties.chain_settings(scene_settings) == _float32(expected)
 
 
 def test_new_schema_fields_need_no_edit_to_settings_or_panels():
@@ -225,10 +225,10 @@ def test_new_schema_fields_need_no_edit_to_settings_or_panels():
         rays: int = dataclasses.field(default=4, metadata={"group": "resolve", "description": "r"})
         mode: str = dataclasses.field(default="A", metadata={"group": "extra", "items": (("A", "A", ""), ("B", "B", ""))})
     schema = dataclasses.fields(Extended)
-    assert scene_settings.grouped_fields(schema) == {
+    assert ui_properties.grouped_fields(schema) == {
         "tracing": ["thickness"], "resolve": ["rays"], "temporal": ["history"], "fading": ["edge_fade"],
         "extra": ["mode"]}
-    group = scene_settings.settings_group(schema)
+    group = ui_properties.settings_group(schema)
     bpy.utils.register_class(group)
     try:
         properties = group.bl_rna.properties
@@ -242,7 +242,7 @@ def test_new_schema_fields_need_no_edit_to_settings_or_panels():
 def test_debug_views_offered_are_the_ones_the_image_can_show():
     """The Debug View setting offers the final image and each layer a pass declares a view on,
     and every one of those layers is written to the passes EXR."""
-    offered = [item[0] for item in scene_settings.UI_PROPERTIES["debug_view"].keywords["items"]]
+    offered = [item[0] for item in ui_properties.UI_PROPERTIES["debug_view"].keywords["items"]]
     assert offered == ["FINAL", *DEBUG_VIEW_LAYERS]
     assert set(DEBUG_VIEW_LAYERS.values()) <= {layer.name for _, layer in frame_layers()}
 
@@ -281,7 +281,7 @@ def _draw(panel, method, scene):
 def test_render_panels_draw_every_setting_and_grey_out_with_a_reason(addon):
     scene = _mirror_floor(*SMALL)
     sub_panels = [cls for cls in panels._registered if getattr(cls, "bl_parent_id", "") == "RENDER_PT_ssr"]
-    assert [cls.bl_label for cls in sub_panels] == [group.title() for group in scene_settings.grouped_fields()]
+    assert [cls.bl_label for cls in sub_panels] == [group.title() for group in ui_properties.grouped_fields()]
     drawn = [entry[1] for panel in sub_panels for entry in _draw(panel, "draw", scene) if entry[0] == "prop"]
     assert sorted(drawn) == sorted(spec.name for spec in SETTINGS_SCHEMA if spec.name != "use_ssr")
     assert _draw(panels.RENDER_PT_ssr, "draw_header", scene) == [("prop", "use_ssr", True, False)]

@@ -28,6 +28,18 @@ SHADOWED_SPLITS = ("unshadowed", "analytic")
 
 
 @dataclass(frozen=True)
+class LampSplit:
+    """How a frame's lamp highlights are split off (lamp_split_method) and what with."""
+    method: str                # analytic, render, unshadowed or off
+    has_lamps: bool            # any light reflects: without one there is nothing to split
+    lamps: tuple = ()          # the lights the analytic split models (blender.lights.scene_lamps)
+
+    @property
+    def needs_shadow_pass(self):
+        return self.method in SHADOWED_SPLITS
+
+
+@dataclass(frozen=True)
 class RenderSetup:
     """Everything a frame's render of its passes is decided by."""
     engine: str                # a key of ENGINES
@@ -75,18 +87,6 @@ def lamp_split_method(engine, lamp_split, unmodelled=None):
 def has_lamps(scene):
     return any(obj.type == "LIGHT" and not obj.hide_render and obj.data.specular_factor > 0
                for obj in scene.objects)
-
-
-@dataclass(frozen=True)
-class LampSplit:
-    """How a frame's lamp highlights are split off (lamp_split_method) and what with."""
-    method: str                # analytic, render, unshadowed or off
-    has_lamps: bool            # any light reflects: without one there is nothing to split
-    lamps: tuple = ()          # the lights the analytic split models (blender.lights.scene_lamps)
-
-    @property
-    def needs_shadow_pass(self):
-        return self.method in SHADOWED_SPLITS
 
 
 def decide_lamp_split(scene, engine, lamp_split):

@@ -157,10 +157,11 @@ class FrameRun:
         self.resources = dict(inputs.textures)
         self.produced = {}  # the resources this frame's passes wrote: ChainOutputs
         self.resources["dfg"] = gpu_passes.dfg_table()  # read by the lamp split and the composite
-        lamps = (("lamp_block", lamp_block(inputs.lamps, frame.size, inputs.view_matrix, inputs.projection_matrix,
-                                           BACKGROUND_DEPTH)),) if inputs.lamps is not None else ()
+        frame_blocks = (("lamp_block", lamp_block(inputs.lamps, frame.size, inputs.view_matrix,
+                                                  inputs.projection_matrix, BACKGROUND_DEPTH)),) \
+            if inputs.lamps is not None else ()
         for gpu_pass in gpu_passes.FRAME_PASSES:
-            self.run(gpu_pass, lamps)
+            self.run(gpu_pass, frame_blocks)
         pool = state.pool
         hiz_tx, frame.hiz_rects = build_pyramid(self.resources["depth"], gpu_passes.HIZ_DOWNSAMPLE,
                                                 gpu_passes.PYRAMID_PACK, pool) \
@@ -190,7 +191,7 @@ class FrameRun:
                 self.resources[resource] = self.resources[stand_in]
                 self.produced[resource] = self.produced.get(stand_in)
             return
-        samplers = [(sampler, self.resources[gpu_pass.resource_read(sampler)]) for sampler in gpu_pass.samplers]
+        samplers = [(sampler, self.resources[sampler[:-len("_tx")]]) for sampler in gpu_pass.samplers]
         pool = frame.state.pool
         targets = [pool.get(f"{gpu_pass.name}.{output.name}{write_slot if output.history else ''}",
                             frame.output_size(output), output.channels) for output in gpu_pass.outputs]

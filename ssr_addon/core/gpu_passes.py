@@ -7,7 +7,7 @@ it (chain.FrameRun binds them by name), `params` is the shared uniform block (un
 GLSL files hold only functions and main(); `*_lib.glsl` files are shared preludes. From one
 declaration the chain runs the pass, the stage timer names it, the passes EXR lays out its
 layers (layers.py) and the debug views are offered (DEBUG_VIEWS). Adding a pass is one GLSL
-file and one declaration, placed in CHAIN_PASSES where it runs.
+file and one declaration, placed in FRAME_PASSES or ITERATION_PASSES where it runs.
 """
 import functools
 import os
@@ -27,7 +27,7 @@ DFG_SAMPLES = 4096  # points per texel: within 0.015 of a 32768-point table even
 # the resolve bounds each ray's cone by the lobe that is left.
 LOBE_TAIL = 0.02
 CONVERGENCE_TILE = 16  # pixels: each tile this size counts alike in the convergence check
-LUT_SIZE = 65                             # display LUT lattice points per channel (display_transform.py)
+LUT_SIZE = 65  # display LUT lattice points per channel (blender/colour_management.py bakes it)
 # Stops of scene-linear light the display LUT spans (its first point is 0). 1.0, where the
 # Standard view clips, falls on a lattice point: interpolating across that bend costs 5 steps.
 LUT_LOG2_MIN, LUT_LOG2_MAX = -15.0, 9.0
@@ -84,9 +84,9 @@ def _always(frame):
 class GPUPass:
     """One fragment shader drawn over its whole target (a full-screen triangle).
 
-    SAMPLERS read resources by name (`X_tx` reads X) unless READS maps them elsewhere; RUNS(frame)
-    says whether it runs in a frame (chain.FrameContext), and SKIPPED which resource stands in
-    for each of its outputs when it does not. STAGE names its time in a StageTimer (None: a
+    SAMPLERS read resources by name (`X_tx` reads X); RUNS(frame) says whether it runs in a frame
+    (chain.FrameContext), and SKIPPED which resource stands in for each of its outputs when it
+    does not. STAGE names its time in a StageTimer (None: a
     helper draw its caller times)."""
     name: str
     source: str
@@ -98,13 +98,9 @@ class GPUPass:
     push_constants: tuple = ()     # (type, name)
     uniform_block: str = "params"  # "params", "lamp_block" (uniforms.LAMP_BLOCK) or None
     volume_samplers: tuple = ()    # 3D textures
-    reads: tuple = ()              # (sampler, resource) where the resource is not the sampler's name
     runs: object = _always
     skipped: tuple = ()            # (resource, the resource that stands in for it)
     directory: str = SHADER_DIR
-
-    def resource_read(self, sampler):
-        return dict(self.reads).get(sampler, sampler[:-len("_tx")])
 
     def draw(self, targets, samplers=(), uniform_blocks=(), constants=(), region=None):
         """Draw into TARGETS (FullscreenPass.draw), compiling the shader on first use."""
