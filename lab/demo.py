@@ -1,7 +1,7 @@
 """`python -m lab demo SCENE DIR`: the end of `make demo`, the scene rendered with SSR off
 (DIR/none) and on (DIR/ssr) side by side in DIR/side_by_side.png, through the scene's colour
 management, each labelled with its FLIP against Cycles on the reflective pixels where the bench
-has the reference cached (`make bench` caches it)."""
+has that reference cached (it caches every reference it renders, at the size it renders)."""
 import os
 
 from ssr_addon.batch.cli import ArgumentParser
@@ -20,6 +20,9 @@ def main(argv):
     parser = ArgumentParser(prog="python -m lab demo", description=__doc__.splitlines()[0])
     parser.add_argument("scene", help="the scene both folders rendered")
     parser.add_argument("out", help="the folder holding none/ and ssr/")
+    parser.add_argument("--cache", default=DEFAULT_CACHE, help="folder of the bench's cached references")
+    parser.add_argument("--reference-samples", type=int, default=REFERENCE_SAMPLES,
+                        help="Cycles samples of the reference to look for")
     arguments = parser.parse_args(argv)
     finals = {}
     for folder, _ in SIDES:
@@ -30,8 +33,8 @@ def main(argv):
     scene = load_scene(arguments.scene)
     images = {folder: layer_rgb(channels, components="RGBA") for folder, channels in finals.items()}
     height, width = images["ssr"].shape[:2]
-    reference = cached_reference(arguments.scene, (width, height), REFERENCE_SAMPLES, scene.frame_current,
-                                 DEFAULT_CACHE)
+    reference = cached_reference(arguments.scene, (width, height), arguments.reference_samples, scene.frame_current,
+                                 arguments.cache)
     tiles = []
     for folder, label in SIDES:
         lines = [label] if reference is None else \
@@ -39,5 +42,7 @@ def main(argv):
         tiles.append((lines, images[folder]))
     path = os.path.join(arguments.out, "side_by_side.png")
     write_display_png(path, comparison_sheet(tiles), scene)
-    note = "" if reference is not None else " (no Cycles reference cached: `make bench` caches one)"
+    note = "" if reference is not None else \
+        f" (no Cycles reference of this scene at {width}x{height} in the bench's cache, {arguments.cache})"
     print(f"SSR off | on, side by side: {path}{note}")
+    return path

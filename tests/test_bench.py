@@ -4,7 +4,9 @@ import json
 
 import pytest
 
-from conftest import run_lab
+from PIL import Image
+
+from conftest import SCENES, run_cli, run_lab
 from lab import bench
 
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
@@ -111,3 +113,18 @@ def test_bad_bench_input_gets_one_clear_line(tmp_path, extra, expected):
     assert result.returncode == 2
     assert len(lines) == 1 and lines[0].startswith("error:") and expected in lines[0], result.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_the_demo_ends_with_ssr_off_and_on_side_by_side(runs, tmp_path):
+    """`make demo`'s last step: the two renders side by side, each labelled with its error against
+    Cycles where the bench has the reference cached (here the bench run's), and the path printed."""
+    _, root = runs
+    scene = f"{SCENES}/{SCENE}.py"
+    for method in ("none", "ssr"):
+        run_cli("render", scene, "--method", method, "--resolution", "64x36", "--samples", "1",
+                "--out", tmp_path / method)
+    result = run_lab("demo", scene, tmp_path, "--cache", root / "cache", "--reference-samples", "64")
+    path = tmp_path / "side_by_side.png"
+    assert str(path) in result.stdout and "no Cycles reference" not in result.stdout
+    with Image.open(path) as sheet:
+        assert sheet.size[0] == 2 * 64 and sheet.size[1] > 36  # two tiles under their labels
