@@ -8,8 +8,6 @@ H100, ten times the rest of the chain.
 """
 import math
 
-import numpy as np
-
 from .gpu_backend import download
 from .gpu_passes import CONVERGENCE_TILE, CONVERGENCE_TILES, COPY
 
