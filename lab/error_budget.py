@@ -54,9 +54,9 @@ def measure(scene_name, frame_number, resolution, cache):
     images["ours on Cycles' passes"] = on_cycles.final
     eevee, cycles = ours.passes, on_cycles.passes
     premultiplied, confidence = ideal_screen_space(scene, eevee)
-    images["correct screen space"] = with_reflection(eevee, eevee.specular_color * premultiplied, confidence)
-    images["correct reflections"] = with_reflection(eevee, cycles.specular_color * cycles.specular_indirect,
-                                                    np.ones(eevee.depth.shape, np.float32))
+    images["correct screen space"] = with_reflection(ours, eevee.specular_color * premultiplied, confidence)
+    cycles_reflection = cycles.specular_color * on_cycles.layers["Specular Indirect"]
+    images["correct reflections"] = with_reflection(ours, cycles_reflection, np.ones(eevee.depth.shape, np.float32))
     return {column: flip_error(reference.image, images[column][..., :3], reference.mask) for column in COLUMNS}
 
 

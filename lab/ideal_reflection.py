@@ -97,8 +97,11 @@ def _seen_pixel(depth, world_to_clip, view, location):
     return (row, column) if abs(depth[row, column] - distance) <= SEEN_DEPTH_TOLERANCE * distance else None
 
 
-def with_reflection(passes, reflected, confidence):
-    """PASSES' image with its probe/world reflection replaced by REFLECTED (after the specular
-    colour, premultiplied by CONFIDENCE) where CONFIDENCE says, as the chain's composite does."""
+def with_reflection(images, reflected, confidence):
+    """The image of IMAGES (a frame's batch.frame.FrameImages) with its probe/world reflection
+    replaced by REFLECTED (after the specular colour, premultiplied by CONFIDENCE) where
+    CONFIDENCE says, as the chain's composite does. The probe/world reflection is the frame's
+    Specular Indirect layer: its lamp highlights split off as the frame's render split them."""
+    passes = images.passes
     return (passes.combined[..., :3] + reflected
-            - confidence[..., None] * passes.specular_color * passes.specular_indirect)
+            - confidence[..., None] * passes.specular_color * images.layers["Specular Indirect"])
