@@ -83,6 +83,7 @@ class FrameContext:
     world_to_clip: np.ndarray
     hiz_rects: list = None       # each Hi-Z level's place in the hiz atlas
     color_rects: list = None
+    capture_color_rects: list = ()  # of the planar capture's colour pyramid
 
     @property
     def resolve_size(self):
@@ -117,6 +118,7 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "world_to_view": view, "view_to_world": np.linalg.inv(view),
         "previous_world_to_clip": previous_world_to_clip,
         "viewport_size": size, "pixel_size": (1.0 / size[0], 1.0 / size[1]), "trace_size": trace_size,
+        "frame_rect": inputs.frame_rect or (0, 0, *size),
         "trace_scale": 2 if settings.half_resolution else 1,
         "resolve_scale": 2 if frame.resolve_size != size else 1,
         "sample_index": iteration.sample_index, "quad_phase": iteration.quad_phase,
@@ -135,12 +137,25 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,
         "history_frames": history_frames,
         "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
+        **_capture_params(inputs.capture, frame.capture_color_rects),
     })
+
+
+def _capture_params(capture, color_rects):
+    if capture is None:
+        return {"use_capture": 0, "capture_world_to_view": np.eye(4), "capture_view_to_clip": np.eye(4),
+                "capture_plane": (0, 0, 0, 0), "capture_size": (1, 1), "capture_color_levels": 0,
+                "capture_color_level": _level_rects(())}
+    return {"use_capture": 1, "capture_world_to_view": capture.view_matrix,
+            "capture_view_to_clip": capture.projection_matrix, "capture_plane": capture.plane,
+            "capture_size": capture.depth.shape[::-1], "capture_color_levels": len(color_rects),
+            "capture_color_level": _level_rects(color_rects)}
 
 
 def _level_rects(rects):
     packed = np.zeros((MAX_PYRAMID_LEVELS, 4), np.float32)
-    packed[:len(rects)] = rects
+    if rects:
+        packed[:len(rects)] = rects
     return packed
 
 
@@ -172,6 +187,11 @@ class FrameRun:
                                                     None if settings.use_cone_filter else 1)
         lap(timer, gpu_passes.COLOR_DOWNSAMPLE.stage, color_tx)
         self.resources.update(hiz=hiz_tx, color=color_tx)
+        if inputs.capture is not None:
+            self.resources["capture_color"], frame.capture_color_rects = build_pyramid(
+                self.resources["capture_radiance"], gpu_passes.COLOR_DOWNSAMPLE, gpu_passes.PYRAMID_PACK, pool,
+                None if settings.use_cone_filter else 1, name="capture_color")
+            lap(timer, gpu_passes.PLANAR_TRACE.stage, self.resources["capture_color"])
         if not state.sequence.has_history:  # the last frame's reflection is no yardstick for this one
             state.convergence.forget()
         self.iterations = 0

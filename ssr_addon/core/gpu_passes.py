@@ -33,7 +33,7 @@ LUT_SIZE = 65  # display LUT lattice points per channel (blender/colour_manageme
 LUT_LOG2_MIN, LUT_LOG2_MAX = -15.0, 9.0
 # The camera and helpers every params pass shares; the defines a library is compiled with.
 COMMON_LIBRARIES = ("view_lib.glsl", "common_lib.glsl")
-LIBRARY_DEFINES = {"ggx_lib.glsl": (("MIN_ALPHA", repr(MIN_ALPHA)),)}
+LIBRARY_DEFINES = {"ggx_lib.glsl": (("MIN_ALPHA", repr(MIN_ALPHA)), ("LOBE_TAIL", repr(LOBE_TAIL)))}
 
 
 @dataclass(frozen=True)
@@ -202,13 +202,32 @@ TRACE = GPUPass(
                      "HIZ_LEVEL", "Hi-Z Level", "Coarsest Hi-Z pyramid level each ray reached")),
                  Layer("SSR Iterations", "V", channels=(1,), view=DebugView(
                      "ITERATIONS", "Iterations", "March steps each pixel's ray took (the last trace iteration)"))))),
-    libraries=_TRACE_LIBRARIES, defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
+    libraries=_TRACE_LIBRARIES)
+# The screen a capture's rays are marched across (screen_ray_lib.glsl).
+_CAPTURE_SCREEN = (("SCREEN_VIEW_TO_CLIP", "params.capture_view_to_clip"), ("SCREEN_SIZE", "params.capture_size"),
+                   ("SCREEN_DEPTH_TX", "capture_depth_tx"))
+PLANAR_TRACE = GPUPass(
+    "planar_trace", "planar_trace.glsl", stage="planar",
+    samplers=("ray_hit_tx", "ray_dir_tx", "ray_stats_tx", "depth_tx", "normal_tx", "roughness_tx",
+              "history_record_tx", "capture_depth_tx", "capture_normal_tx", "capture_color_tx"),
+    outputs=(Output("capture_hit_img", size="trace"),
+             Output("ray_outcome_img", size="trace", layers=(
+                 Layer("SSR Resolved By", "V", channels=(3,), view=DebugView(
+                     "RESOLVED_BY", "Resolved By",
+                     "Which level resolved each pixel's ray: 1 screen, 2 guard band, 3 planar capture; "
+                     "and why the rest fell to the probes/world: 4 left the frame, 5 passed behind what it "
+                     "shows, 6 escaped; 0 no ray")),))),
+    libraries=(*COMMON_LIBRARIES, "screen_ray_lib.glsl", "linear_march_lib.glsl", "ggx_lib.glsl",
+               "history_lib.glsl"),
+    defines=_CAPTURE_SCREEN, runs=lambda frame: frame.inputs.capture is not None,
+    skipped=(("capture_hit", "ray_hit"), ("ray_outcome", "ray_stats")))
 RESOLVE = GPUPass(
     "resolve", "resolve.glsl", stage="resolve",
-    samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx"),
+    samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx",
+              "capture_hit_tx"),
     outputs=(Output("resolved_img", size="resolve", layers=(Layer("SSR Resolve", "RGBA"),)),
              Output("reflection_hit_img", size="resolve")),
-    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"), defines=(("LOBE_TAIL", repr(LOBE_TAIL)),))
+    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"))
 RESOLVE_UPSCALE = GPUPass("resolve_upscale", "resolve_upscale.glsl", stage="resolve",
                           samplers=("resolved_tx", "reflection_hit_tx"),
                           outputs=(Output("resolved_img"), Output("reflection_hit_img")), libraries=(),
@@ -265,7 +284,7 @@ DISPLAY_TRANSFORM = GPUPass(
 
 # What a frame runs, in order (chain.FrameRun): once a frame, once an iteration, once a composite.
 FRAME_PASSES = (LAMP_SPLIT,)
-ITERATION_PASSES = (TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
+ITERATION_PASSES = (TRACE, PLANAR_TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
 CHAIN_PASSES = (*FRAME_PASSES, HIZ_DOWNSAMPLE, COLOR_DOWNSAMPLE, *ITERATION_PASSES, CONVERGENCE_TILES, COMPOSITE)
 # The chain's stages as a StageTimer names them, in order.
 CHAIN_STAGES = tuple(dict.fromkeys(gpu_pass.stage for gpu_pass in CHAIN_PASSES if gpu_pass.stage))

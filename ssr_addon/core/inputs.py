@@ -32,10 +32,21 @@ class RenderPasses:
     samples: int                 # samples per pixel the engine rendered with
     material_warnings: tuple = ()  # materials whose roughness/F0 the AOVs could not read, and what was assumed
     lamps: object = None         # lamp_split.LampLights the chain splits off the specular light (analytic)
+    capture: object = None       # captures.PlanarCapture rays off the main reflector are traced in
+    crop: tuple = None           # (x, y, width, height) of the requested frame, image order, where the
+                                 # passes hold a guard band around it; None: all of them
 
     @property
     def size(self):
         return self.depth.shape[1], self.depth.shape[0]
+
+    @property
+    def frame_rect(self):
+        """The requested frame in pixels of the passes, bottom-up as the GPU counts them:
+        (x0, y0, x1, y1)."""
+        width, height = self.size
+        x, y, crop_width, crop_height = self.crop or (0, 0, width, height)
+        return (x, height - y - crop_height, x + crop_width, height - y)
 
     @property
     def specular_direct(self):
@@ -60,7 +71,7 @@ class ChainInputs:
     roughness, combined, specular_color, f0 (specular reflectance at normal incidence, for FG),
     motion (screen offset to the previous frame in pixels, the Vector pass) and either
     specular_indirect or, where LAMPS are given, specular_light and shadow, which the chain's
-    first pass splits."""
+    first pass splits; with a CAPTURE, its capture_radiance, capture_depth and capture_normal."""
     textures: dict
     view_matrix: np.ndarray
     projection_matrix: np.ndarray
@@ -69,6 +80,8 @@ class ChainInputs:
     # Pixels rougher than this get cheap rays; ties at it are expensive with this probability.
     ray_budget: tuple = (1.0, 1.0)
     lamps: tuple = None          # lamp_split.Lamp records the chain splits off the specular light
+    capture: object = None       # captures.PlanarCapture (its textures are capture_* resources)
+    frame_rect: tuple = None     # RenderPasses.frame_rect; None: the whole frame
 
     @property
     def size(self):
@@ -83,6 +96,8 @@ class ChainInputs:
                     "normal": upload(passes.normal), "roughness": upload(passes.roughness),
                     "specular_color": upload(passes.specular_color), "f0": upload(passes.f0),
                     "motion": upload(passes.motion)}
+        if passes.capture is not None:
+            textures.update(passes.capture.textures())
         if passes.lamps is None:
             textures["specular_indirect"] = upload(passes.specular_indirect)
         else:
@@ -91,6 +106,7 @@ class ChainInputs:
         inputs = cls(textures, view_matrix=passes.view_matrix, projection_matrix=passes.projection_matrix,
                      clip_start=passes.clip_start, clip_end=passes.clip_end,
                      ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings),
-                     lamps=None if passes.lamps is None else passes.lamps.lamps)
+                     lamps=None if passes.lamps is None else passes.lamps.lamps, capture=passes.capture,
+                     frame_rect=passes.frame_rect)
         lap(timer, "upload")
         return inputs

@@ -32,19 +32,21 @@ def atlas_layout(levels):
     return (column_x[0] + columns[0][0], max(levels[0][1], heights[1], heights[0])), rects, columns
 
 
-def build_pyramid(source_tx, reduction, pack, pool, level_count=None):
+def build_pyramid(source_tx, reduction, pack, pool, level_count=None, name=None):
     """Reduce SOURCE level by level with the pass REDUCTION (gpu_passes.HIZ_DOWNSAMPLE: min,
     COLOR_DOWNSAMPLE: mean) and pack the levels into one atlas texture with PACK
     (gpu_passes.PYRAMID_PACK); returns (atlas, rectangles).
 
     Each level is one draw, into the column texture of its parity, reading the level before
     from the other one (a texture may not be read while drawn into); then three copies make
-    the atlas: the source as level 0, and each column."""
+    the atlas: the source as level 0, and each column. NAME (default: the reduction's) keeps
+    its textures in POOL apart from another pyramid's."""
+    name = name or reduction.name
     levels = pyramid_levels((source_tx.width, source_tx.height))[:level_count]
     atlas_size, rects, columns = atlas_layout(levels)
     channels = reduction.outputs[0].channels
-    atlas = pool.get(f"{reduction.name}.atlas", atlas_size, channels)
-    column_tx = {parity: pool.get(f"{reduction.name}.column{parity}", size, channels)
+    atlas = pool.get(f"{name}.atlas", atlas_size, channels)
+    column_tx = {parity: pool.get(f"{name}.column{parity}", size, channels)
                  for parity, size in columns.items() if size[1] > 0}
     source, source_rect = source_tx, rects[0]
     for index, (_, y, width, height) in enumerate(rects[1:], 1):

@@ -14,6 +14,11 @@ RAY_SAMPLING_CODES = {"halton": 0, "random": 1, "uniform": 2}
 HISTORY_MODES = {"none": 0, "animation": 1, "still": 2}
 # What one cell visit of the Hi-Z march did (hiz_march_lib.glsl's recording hook).
 HIZ_VISITS = {"skip": 1, "descend": 2, "behind": 3, "hit": 4}
+# What became of each traced ray (ray_stats_img.w, the "Resolved By" debug view): which level of
+# the fallback hierarchy resolved it, or, where none did and the probes/world stand in, why the
+# screen could not: its ray left the frame, passed behind what the frame shows, or escaped
+# (reached its length or the sky in view).
+RAY_OUTCOMES = {"none": 0, "screen": 1, "guard_band": 2, "planar": 3, "left_frame": 4, "behind": 5, "escaped": 6}
 # LampData.shape: the emitter of each Lamp.shape (lamp_split.glsl).
 LAMP_SHAPES = {"sphere": 0, "facing_disk": 1, "sun": 2, "rect": 3, "ellipse": 4}
 
@@ -27,6 +32,7 @@ PARAMS_FIELDS = (
     ("vec2", "viewport_size", "full resolution in pixels"),
     ("vec2", "pixel_size", "1 / viewport_size"),
     ("vec2", "trace_size", "traced rays along each axis"),
+    ("vec4", "frame_rect", "the requested frame within this one, pixels (x0, y0, x1, y1): a guard band around it"),
     ("int", "trace_scale", "pixels per traced ray along each axis (1 or 2)"),
     ("int", "resolve_scale", "pixels per resolved texel along each axis (1, or 2 resolving at the traced size)"),
     ("uint", "sample_index", "this iteration's index in the low-discrepancy sequence"),
@@ -58,6 +64,13 @@ PARAMS_FIELDS = (
     ("float", "history_frames", "most frames a moving pixel averages"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
+    ("int", "use_capture", "a planar capture's hits stand in for the screen's (resolve reads capture_hit_tx)"),
+    ("mat4", "capture_world_to_view", "the planar capture's camera: the frame's mirrored in its plane"),
+    ("mat4", "capture_view_to_clip", "its projection"),
+    ("vec4", "capture_plane", "the reflector's plane in world space, n.x + d, n towards what it reflects"),
+    ("vec2", "capture_size", "the capture's pixels"),
+    ("int", "capture_color_levels", "levels in its colour pyramid"),
+    (f"vec4[{MAX_PYRAMID_LEVELS}]", "capture_color_level", "its colour pyramid atlas"),
 )
 
 # Lights of lamp_split=analytic (lamp_split.py, lamp_split.glsl); it refuses a scene with more.
@@ -170,7 +183,7 @@ def shader_enums(prefix, codes):
 def glsl_struct():
     """The SSRParams struct and the enumerations its fields take, for GPUShaderCreateInfo.typedef_source."""
     return (f"#define MAX_PYRAMID_LEVELS {MAX_PYRAMID_LEVELS}\n" + shader_enums("RAY_SAMPLING", RAY_SAMPLING_CODES)
-            + shader_enums("HISTORY_MODE", HISTORY_MODES) + shader_enums("HIZ_VISIT", HIZ_VISITS) + PARAMS.glsl())
+            + shader_enums("HISTORY_MODE", HISTORY_MODES) + shader_enums("HIZ_VISIT", HIZ_VISITS) + shader_enums("RAY_OUTCOME", RAY_OUTCOMES) + PARAMS.glsl())
 
 
 def lamp_block_glsl():

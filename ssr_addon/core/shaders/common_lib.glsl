@@ -50,12 +50,29 @@ vec3 view_normal(vec3 world_normal)
   return normalize(mat3(params.world_to_view) * world_normal);
 }
 
-/* Size of one pixel, in view units, on a surface at this depth. */
+/* Size of one pixel, in view units, at this depth of a camera with projection VIEW_TO_CLIP
+ * and HEIGHT_PX rows of pixels. */
+float pixel_footprint_of(mat4 view_to_clip, float height_px, float depth)
+{
+  bool orthographic = view_to_clip[3][3] == 1.0;
+  return 2.0 / (view_to_clip[1][1] * height_px) * (orthographic ? 1.0 : depth);
+}
+
+/* Size of one pixel of the frame, in view units, on a surface at this depth. */
 float pixel_footprint(float depth)
 {
-  bool orthographic = params.view_to_clip[3][3] == 1.0;
-  return 2.0 / (params.view_to_clip[1][1] * params.viewport_size.y) * (orthographic ? 1.0 : depth);
+  return pixel_footprint_of(params.view_to_clip, params.viewport_size.y, depth);
 }
+
+/* The level of a colour pyramid whose texel matches the patch a ray's cone of SOLID_ANGLE
+ * steradians covers at HIT_DISTANCE, where a level-0 texel there is TEXEL_SIZE across
+ * (fractional; clamped to the LEVELS there are). */
+float cone_level(float hit_distance, float solid_angle, float texel_size, int levels)
+{
+  float patch_area = hit_distance * hit_distance * solid_angle;
+  return clamp(0.5 * log2(patch_area / (texel_size * texel_size)), 0.0, float(levels) - 1.0);
+}
+
 
 /* No NaN or Inf in any component. Read from the exponent bits: comparisons and isnan()
  * may be folded away by a compiler that assumes finite maths (Mesa's does). */
@@ -92,4 +109,12 @@ vec4 atlas_sample(sampler2D atlas, vec4 level_rect, vec2 uv)
 {
   vec2 position = clamp(uv * level_rect.zw, vec2(0.5), level_rect.zw - 0.5);
   return textureLod(atlas, (level_rect.xy + position) / vec2(textureSize(atlas, 0)), 0.0);
+}
+
+/* Trilinear sample of a colour pyramid atlas at LEVEL between its level rectangles. */
+vec3 pyramid_sample(sampler2D atlas, vec4 lower_rect, vec4 upper_rect, float level, vec2 uv)
+{
+  vec3 a = atlas_sample(atlas, lower_rect, uv).rgb;
+  vec3 b = atlas_sample(atlas, upper_rect, uv).rgb;
+  return mix(a, b, level - floor(level));
 }

@@ -5,7 +5,8 @@
 #ifndef M_PI
 #  define M_PI 3.14159265358979
 #endif
-/* MIN_ALPHA, the alpha floor, is core.ggx.MIN_ALPHA (gpu_passes defines it with this file). */
+/* MIN_ALPHA, the alpha floor, is core.ggx.MIN_ALPHA, and LOBE_TAIL the share of the lobe's
+ * visible normals rays never sample (trace.glsl); gpu_passes defines both with this file. */
 
 float ggx_alpha(float roughness)
 {
@@ -81,4 +82,15 @@ float ggx_brdf_cos(vec3 n, vec3 v, vec3 l, float alpha)
   }
   vec3 h = normalize(v + l);
   return ggx_d(max(dot(n, h), 0.0), alpha) * smith_g2(n_dot_v, n_dot_l, alpha) / (4.0 * n_dot_v);
+}
+
+/* The solid angle one of RAYS_AVERAGED rays drawn with PDF stands for, read as a cone
+ * (filtered importance sampling: 1 / (N pdf)), but never more than the whole sampled lobe:
+ * rays reach sqrt((1 - LOBE_TAIL) / LOBE_TAIL) alphas from its peak (7 at 2 %), about that
+ * squared over the peak pdf in solid angle. Without the bound, a ray from a smooth lobe's
+ * tail reads a blur of everything around its hit: a speck. */
+float ray_solid_angle(float pdf, float rays_averaged, float n_dot_v, float alpha)
+{
+  float lobe_solid_angle = (1.0 - LOBE_TAIL) / LOBE_TAIL / visible_normal_pdf(max(n_dot_v, 1e-4), 1.0, alpha);
+  return min(1.0 / (rays_averaged * pdf), lobe_solid_angle);
 }

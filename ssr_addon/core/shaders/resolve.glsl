@@ -6,7 +6,8 @@
  *
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
  *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_record_tx
- *          (iterations the temporal history holds, history_lib.glsl).
+ *          (iterations the temporal history holds, history_lib.glsl), capture_hit_tx
+ *          (what a planar capture found for each ray, read where params.use_capture).
  * Outputs: resolved_img     = (reflected radiance * confidence, confidence),
  *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
  *
@@ -41,15 +42,11 @@ vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
   float level = 0.0;
   if (params.use_cone_filter != 0 && params.use_importance_sampling != 0) {
     float hit_depth = texelFetch(depth_tx, texel_at(hit_uv * params.viewport_size), 0).r;
-    float patch_area = hit_distance * hit_distance * solid_angle;
-    float texel_area = pow(pixel_footprint(hit_depth), 2.0);
-    level = clamp(0.5 * log2(patch_area / texel_area), 0.0, float(params.color_levels) - 1.0);
+    level = cone_level(hit_distance, solid_angle, pixel_footprint(hit_depth), params.color_levels);
   }
   int lower = int(floor(level));
   int upper = min(lower + 1, params.color_levels - 1);
-  vec3 a = atlas_sample(color_tx, params.color_level[lower], hit_uv).rgb;
-  vec3 b = atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb;
-  return mix(a, b, level - float(lower));
+  return pyramid_sample(color_tx, params.color_level[lower], params.color_level[upper], level, hit_uv);
 }
 
 void main()
@@ -78,17 +75,11 @@ void main()
   int ray_count = params.resolve_samples;
   float rays_averaged = float(ray_count) * accumulated_iterations(pixel);
 
-  /* A ray stands for 1 / (N pdf) steradians of the lobe (filtered importance
-   * sampling), N the rays of every iteration the history averages here, but never
-   * for more than the whole sampled lobe: rays reach
-   * sqrt((1 - LOBE_TAIL) / LOBE_TAIL) alphas from its peak (7 at 2 %, trace.glsl),
-   * about that squared over the peak pdf in solid angle. Without the bound, a ray
-   * from a smooth lobe's tail reads a blur of everything around its hit: a speck. */
-  float lobe_solid_angle = (1.0 - LOBE_TAIL) / LOBE_TAIL /
-                           visible_normal_pdf(max(dot(normal, to_eye), 1e-4), 1.0, alpha);
+  /* A ray stands for one of the N rays of every iteration the history averages here. */
+  float n_dot_v = dot(normal, to_eye);
 
   vec3 radiance_sum = vec3(0.0);
-  float weight_sum = 0.0, hit_weight_sum = 0.0, distance_sum = 0.0;
+  float weight_sum = 0.0, hit_weight_sum = 0.0, screen_weight_sum = 0.0, distance_sum = 0.0;
   vec2 hit_uv_sum = vec2(0.0);
   for (int k = 0; k < ray_count; k++) {
     ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
@@ -99,7 +90,10 @@ void main()
     vec4 ray = texelFetch(ray_dir_tx, texel, 0);
     vec3 direction = ray.xyz;
     float hit_distance = 0.0;
-    if (hit.w > 0.0) {
+    /* A capture's hit stands in for the screen's share it takes (planar_trace.glsl). */
+    vec4 captured = params.use_capture != 0 ? texelFetch(capture_hit_tx, texel, 0) : vec4(0.0);
+    float screen_share = min(hit.w, 1.0 - captured.a);
+    if (screen_share > 0.0) {
       float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport_size), 0).r;
       vec3 to_hit = view_position(hit.xy, hit_depth) - position;
       hit_distance = length(to_hit);
@@ -107,14 +101,19 @@ void main()
     }
     float weight = ggx_brdf_cos(normal, to_eye, direction, alpha) / hit.z;
     weight_sum += weight;
-    if (hit.w > 0.0 && weight > 0.0) {
-      float hit_weight = weight * hit.w;
-      vec3 radiance = hit_radiance(hit.xy, hit_distance,
-                                    min(1.0 / (rays_averaged * hit.z), lobe_solid_angle));
+    if (screen_share > 0.0 && weight > 0.0) {
+      float hit_weight = weight * screen_share;
+      vec3 radiance = hit_radiance(hit.xy, hit_distance, ray_solid_angle(hit.z, rays_averaged, n_dot_v, alpha));
       radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(radiance) : radiance);
       hit_weight_sum += hit_weight;
+      screen_weight_sum += hit_weight;
       distance_sum += hit_weight * hit_distance;
       hit_uv_sum += hit_weight * hit.xy;
+    }
+    if (captured.a > 0.0 && weight > 0.0) {
+      float hit_weight = weight * captured.a;
+      radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(captured.rgb) : captured.rgb);
+      hit_weight_sum += hit_weight;
     }
   }
   /* Written so that NaN, should any reach here, counts as "no reflection". */
@@ -131,5 +130,6 @@ void main()
     radiance = tonemap_inverse(radiance);
   }
   resolved_img = vec4(radiance * confidence, confidence);
-  reflection_hit_img = vec4(distance_sum, hit_uv_sum, 0.0) / hit_weight_sum;
+  /* The screen's hits only: a capture's have no place on screen to reproject. */
+  reflection_hit_img = screen_weight_sum > 0.0 ? vec4(distance_sum, hit_uv_sum, 0.0) / screen_weight_sum : vec4(0.0);
 }

@@ -1,6 +1,18 @@
 /* A reflection ray projected to the screen, shared by both tracers.
  * Position on screen is linear in t; depth along the ray is interpolated
- * perspective-correctly: view z / w and 1 / w are both linear in t. */
+ * perspective-correctly: view z / w and 1 / w are both linear in t.
+ *
+ * The screen is the frame's unless a pass that marches another view (a capture's) defines
+ * SCREEN_VIEW_TO_CLIP, SCREEN_SIZE and SCREEN_DEPTH_TX before this file; positions and
+ * directions are then in that view's space. */
+#ifndef SCREEN_VIEW_TO_CLIP
+#  define SCREEN_VIEW_TO_CLIP params.view_to_clip
+#  define SCREEN_SIZE params.viewport_size
+#  define SCREEN_DEPTH_TX depth_tx
+#endif
+/* Depth tests along a ray that missed, to tell one that passed behind a surface from one
+ * that left the frame or escaped (RAY_OUTCOME_*). */
+#define BEHIND_SAMPLES 24
 
 struct ScreenRay {
   vec2 start_px, delta_px; /* full-resolution screen position at t=0 and its change up to t=1 */
@@ -17,15 +29,15 @@ ScreenRay project_ray(vec3 origin, vec3 direction)
     ray_length = min(ray_length, 0.99 * (near_z - origin.z) / direction.z);
   }
   vec3 end = origin + direction * ray_length;
-  vec4 h0 = params.view_to_clip * vec4(origin, 1.0);
-  vec4 h1 = params.view_to_clip * vec4(end, 1.0);
+  vec4 h0 = SCREEN_VIEW_TO_CLIP * vec4(origin, 1.0);
+  vec4 h1 = SCREEN_VIEW_TO_CLIP * vec4(end, 1.0);
   ScreenRay ray;
   ray.k0 = 1.0 / h0.w;
   ray.k1 = 1.0 / h1.w;
   ray.q0 = origin * ray.k0;
   ray.q1 = end * ray.k1;
-  ray.start_px = (h0.xy * ray.k0 * 0.5 + 0.5) * params.viewport_size;
-  ray.delta_px = (h1.xy * ray.k1 * 0.5 + 0.5) * params.viewport_size - ray.start_px;
+  ray.start_px = (h0.xy * ray.k0 * 0.5 + 0.5) * SCREEN_SIZE;
+  ray.delta_px = (h1.xy * ray.k1 * 0.5 + 0.5) * SCREEN_SIZE - ray.start_px;
   return ray;
 }
 
@@ -36,7 +48,7 @@ float screen_exit(ScreenRay ray)
   for (int axis = 0; axis < 2; axis++) {
     float delta = ray.delta_px[axis];
     if (delta > 0.0) {
-      t_exit = min(t_exit, (params.viewport_size[axis] - ray.start_px[axis]) / delta);
+      t_exit = min(t_exit, (SCREEN_SIZE[axis] - ray.start_px[axis]) / delta);
     }
     else if (delta < 0.0) {
       t_exit = min(t_exit, -ray.start_px[axis] / delta);
@@ -66,9 +78,38 @@ vec3 ray_view_position(ScreenRay ray, float t)
   return mix(ray.q0, ray.q1, t) / mix(ray.k0, ray.k1, t);
 }
 
+/* The texel of the screen under a position in its pixels, kept on it. */
+ivec2 screen_texel_at(vec2 position_px)
+{
+  return clamp(ivec2(floor(position_px)), ivec2(0), ivec2(SCREEN_SIZE) - 1);
+}
+
 float scene_depth_at(ScreenRay ray, float t)
 {
-  return texelFetch(depth_tx, texel_at(ray_position_px(ray, t)), 0).r;
+  return texelFetch(SCREEN_DEPTH_TX, screen_texel_at(ray_position_px(ray, t)), 0).r;
+}
+
+/* Whether the ray runs behind what the screen shows, by more than the thickness, somewhere
+ * before T_END: what it would have hit there the screen may not show. */
+bool passes_behind(ScreenRay ray, float t_end)
+{
+  for (int i = 1; i <= BEHIND_SAMPLES; i++) {
+    float t = t_end * float(i) / float(BEHIND_SAMPLES);
+    float surface = scene_depth_at(ray, t);
+    if (!is_background(surface) && ray_depth_at(ray, t) > surface + params.thickness) {
+      return true;
+    }
+  }
+  return false;
+}
+
+/* Why a ray that found nothing on screen missed (RAY_OUTCOME_*), its march ended at T_END. */
+int miss_outcome(ScreenRay ray, float t_end)
+{
+  if (passes_behind(ray, t_end)) {
+    return RAY_OUTCOME_BEHIND;
+  }
+  return screen_exit(ray) < 1.0 ? RAY_OUTCOME_LEFT_FRAME : RAY_OUTCOME_ESCAPED;
 }
 
 /* Screen-edge fade ("Edge Fading" slide): a hit at UV of a ray running along DIRECTION_PX
@@ -81,7 +122,7 @@ float border_fade(vec2 uv, vec2 direction_px)
   if (params.border_fade <= 0.0) {
     return 1.0;
   }
-  vec2 direction = direction_px * params.pixel_size;
+  vec2 direction = direction_px / SCREEN_SIZE;
   float direction_length = length(direction);
   vec2 room = mix(uv, 1.0 - uv, step(0.0, direction)); /* to the edge it heads for, per axis */
   /* A ray that does not move on screen: the nearest edge. */

@@ -6,7 +6,9 @@
  *                          confidence 0: traced but no trustworthy hit.
  *          ray_dir_img   = (view-space ray direction, hit distance).
  *          ray_stats_img = (ray class: 0 none, 1 cheap, 2 expensive; march iterations;
- *                           highest Hi-Z level reached; 0).
+ *                           highest Hi-Z level reached; RAY_OUTCOME_*: a hit on screen, in the
+ *                           guard band around the requested frame (params.frame_rect), or why
+ *                           it missed).
  *
  * With half-resolution tracing each texel traces from one pixel of its 2x2
  * quad, params.quad_phase, so all four originate a ray in four iterations
@@ -114,14 +116,18 @@ void main()
   float t = expensive ? march_hiz(ray, iterations, highest_level) : march_linear(ray, iterations);
   ray_stats_img.yz = vec2(iterations, highest_level);
   if (t < 0.0) {
+    ray_stats_img.w = float(miss_outcome(ray, screen_exit(ray)));
     return;
   }
   vec2 hit_px = ray_position_px(ray, t);
   vec2 hit_uv = hit_px * params.pixel_size;
   vec3 hit_normal = view_normal(texelFetch(normal_tx, texel_at(hit_px), 0).xyz);
   if (dot(hit_normal, direction) > 0.0) {
-    return; /* back face: the ray hit the far side of a surface */
+    ray_stats_img.w = float(RAY_OUTCOME_BEHIND); /* back face: the ray hit the far side of a surface */
+    return;
   }
+  bool in_frame = all(greaterThanEqual(hit_px, params.frame_rect.xy)) && all(lessThan(hit_px, params.frame_rect.zw));
+  ray_stats_img.w = float(in_frame ? RAY_OUTCOME_SCREEN : RAY_OUTCOME_GUARD_BAND);
   ray_dir_img.w = distance(origin, ray_view_position(ray, t));
   ray_hit_img.xy = hit_uv;
   ray_hit_img.w = border_fade(hit_uv, ray.delta_px) * camera_facing_fade(incident, direction);

@@ -1,0 +1,89 @@
+/* Planar capture: what a large flat reflector shows, traced in a view of its own ("Beyond the
+ * screen", level 2; the deck's planar reflections baseline, and EEVEE 5.0's planar probes,
+ * eevee_ray_trace_planar_comp.glsl, which are traced before the screen like this).
+ *
+ * The capture is the scene rendered from the frame's camera mirrored in the reflector's plane,
+ * the reflector hidden: seen from there, everything the reflector mirrors lies in front,
+ * including what the frame's camera cannot see (the underside of a sphere over a mirror
+ * floor) and what lies outside the frame. A ray that leaves the reflector is marched through
+ * that view's depth like a screen ray (screen_ray_lib.glsl, linear_march_lib.glsl, with the
+ * screen redefined below) and its hit read from the capture's colour pyramid as a cone, as the
+ * resolve reads screen hits. Its hit replaces the screen's: the capture sees the hit from where
+ * the reflection sees it.
+ *
+ * Inputs:  ray_hit_tx, ray_dir_tx, ray_stats_tx (the screen trace), depth_tx, normal_tx,
+ *          roughness_tx, history_record_tx (the frame), capture_depth_tx, capture_normal_tx,
+ *          capture_color_tx (the capture: view depth, world normal, colour pyramid atlas).
+ * Outputs: capture_hit_img = (radiance of the hit, share of the ray it resolves: 0 for a ray
+ *                            it did not take, the capture's edge fade for one it hit),
+ *          ray_outcome_img = (hit distance, 0, 0, RAY_OUTCOME_*: PLANAR where it hit, the
+ *                            screen trace's outcome elsewhere). */
+
+/* Rays from this close to the plane, in frame pixels at their depth, leave the reflector. */
+#define PLANE_TOLERANCE_PX 2.0
+/* A pixel whose normal is this close to the plane's is the reflector, not something on it. */
+#define PLANE_NORMAL_COS 0.99
+
+vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float solid_angle)
+{
+  float level = 0.0;
+  if (params.use_cone_filter != 0 && params.use_importance_sampling != 0) {
+    float texel_size = pixel_footprint_of(params.capture_view_to_clip, params.capture_size.y, hit_depth);
+    level = cone_level(hit_distance, solid_angle, texel_size, params.capture_color_levels);
+  }
+  int lower = int(floor(level));
+  int upper = min(lower + 1, params.capture_color_levels - 1);
+  return pyramid_sample(capture_color_tx, params.capture_color_level[lower], params.capture_color_level[upper],
+                        level, hit_uv);
+}
+
+void main()
+{
+  ivec2 texel = ivec2(gl_FragCoord.xy);
+  vec4 screen_stats = texelFetch(ray_stats_tx, texel, 0);
+  capture_hit_img = vec4(0.0);
+  ray_outcome_img = vec4(0.0, 0.0, 0.0, screen_stats.w);
+  vec4 hit = texelFetch(ray_hit_tx, texel, 0);
+  if (!(hit.z > 0.0) || screen_stats.x == 0.0) {
+    return; /* no ray from here */
+  }
+  ivec2 pixel = ray_origin_pixel(texel);
+  float depth = texelFetch(depth_tx, pixel, 0).r;
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
+  vec3 view_origin = view_position(uv, depth);
+  vec3 view_ray = texelFetch(ray_dir_tx, texel, 0).xyz;
+  vec3 origin = (params.view_to_world * vec4(view_origin, 1.0)).xyz;
+  vec3 direction = mat3(params.view_to_world) * view_ray;
+  vec3 world_normal = texelFetch(normal_tx, pixel, 0).xyz;
+  vec3 plane_normal = params.capture_plane.xyz;
+  float height = dot(plane_normal, origin) + params.capture_plane.w;
+  if (abs(height) > PLANE_TOLERANCE_PX * pixel_footprint(depth) ||
+      dot(normalize(world_normal), plane_normal) < PLANE_NORMAL_COS || dot(direction, plane_normal) <= 0.0)
+  {
+    return; /* not a ray off the reflector */
+  }
+  vec3 capture_origin = (params.capture_world_to_view * vec4(origin, 1.0)).xyz;
+  vec3 capture_direction = mat3(params.capture_world_to_view) * direction;
+  ScreenRay ray = project_ray(capture_origin, capture_direction);
+  float steps;
+  float t = march_linear(ray, steps);
+  if (t < 0.0) {
+    return; /* the capture shows nothing there either: the screen's outcome stands */
+  }
+  vec2 hit_px = ray_position_px(ray, t);
+  ivec2 hit_texel = screen_texel_at(hit_px);
+  vec3 hit_normal = mat3(params.capture_world_to_view) * texelFetch(capture_normal_tx, hit_texel, 0).xyz;
+  if (dot(hit_normal, capture_direction) > 0.0) {
+    return; /* the far side of a surface */
+  }
+  vec3 hit_position = ray_view_position(ray, t);
+  float hit_distance = distance(capture_origin, hit_position);
+  float roughness = texelFetch(roughness_tx, pixel, 0).r;
+  float rays_averaged = float(params.resolve_samples) * accumulated_iterations(pixel);
+  float solid_angle = ray_solid_angle(hit.z, rays_averaged, dot(view_normal(world_normal), -view_incident(uv)),
+                                      ggx_alpha(roughness));
+  vec2 hit_uv = hit_px / params.capture_size;
+  vec3 radiance = capture_radiance(hit_uv, -hit_position.z, hit_distance, solid_angle);
+  capture_hit_img = vec4(radiance, border_fade(hit_uv, ray.delta_px));
+  ray_outcome_img = vec4(hit_distance, 0.0, 0.0, float(RAY_OUTCOME_PLANAR));
+}
