@@ -41,9 +41,10 @@ def render_frame(scene, request, state=None):
     """
     timer = StageTimer(wait_for_gpu=request.time_stages)
     use_ssr = request.method == "ssr" and request.settings.use_ssr
+    settings = request.settings
     setup = decide_render(scene, request.engine, request.samples, request.resolution,
-                          RENDER_RAYTRACING.get(request.method),
-                          lamp_split=request.settings.lamp_split if use_ssr else "off")
+                          RENDER_RAYTRACING.get(request.method), lamp_split=settings.lamp_split if use_ssr else "off",
+                          fallback=settings.fallback if use_ssr else "off", max_roughness=settings.max_roughness)
     if setup.lamp_split.method == "analytic":
         timer.lap("lamp_split")  # reading the scene's lights; the chain adds its pass
     passes = render_passes(scene, setup, timer)

@@ -78,7 +78,8 @@ def _update_world_matrices(scene):
     next((layer for layer in scene.view_layers if layer.use), scene.view_layers[0]).update()
 
 
-def _rendered_geometry(scene):
+def rendered_geometry(scene):
+    """The scene's objects that render as surfaces."""
     return [obj for obj in scene.objects if obj.type in _GEOMETRY_TYPES and not obj.hide_render]
 
 
@@ -96,7 +97,7 @@ def _new_probe(scene, changes, name, kind):
 
 
 def _add_sphere_probe(scene, changes, centre_object):
-    geometry = _rendered_geometry(scene)
+    geometry = rendered_geometry(scene)
     if not geometry:
         raise SSRError(f"scene '{scene.name}' has no visible geometry for a reflection cubemap to capture")
     scene_low, scene_high = _world_bounds(geometry)
@@ -138,7 +139,7 @@ def default_probe_placement(scene, geometry=None):
     kept within the heights of the solid objects (slabs left out), moved out of any bounding
     box it lands in. The sphere encloses every solid object past the influence's falloff band.
     """
-    geometry = _rendered_geometry(scene) if geometry is None else geometry
+    geometry = rendered_geometry(scene) if geometry is None else geometry
     scene_low, scene_high = _world_bounds(geometry)
     solid = [obj for obj in geometry if not _is_slab(obj)] or geometry
     low, high = _world_bounds(solid)
@@ -203,16 +204,24 @@ def _flat_extent(obj):
     return size.x / 2, size.y / 2
 
 
-def _largest_flat_mesh(scene):
+def largest_flat_mesh(scene):
+    """The rendered mesh, flat along its local Z axis, of the largest area (a floor, a mirror,
+    water), or None."""
     def world_area(obj):
         half_x, half_y = _flat_extent(obj)
         scale = obj.matrix_world.to_scale()
         return half_x * abs(scale.x) * half_y * abs(scale.y)
-    flat = [obj for obj in _rendered_geometry(scene) if _flat_extent(obj) is not None]
-    if not flat:
+    flat = [obj for obj in rendered_geometry(scene) if _flat_extent(obj) is not None]
+    return max(flat, key=world_area) if flat else None
+
+
+def _largest_flat_mesh(scene):
+    mirror = largest_flat_mesh(scene)
+    if mirror is None:
         raise SSRError(f"scene '{scene.name}' has no flat mesh for the planar mode: "
                        "choose a mirror plane in the SSR tab")
-    return max(flat, key=world_area)
+    return mirror
+
 
 
 def _add_plane_probe(scene, changes, mirror):

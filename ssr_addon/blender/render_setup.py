@@ -10,6 +10,7 @@ pixels was 2.3x higher.
 from dataclasses import dataclass
 
 from ..core.errors import SSRError
+from ..core.settings import fallback_levels
 from .lights import require_modelled, scene_lamps
 from .scene_io import require_camera, require_square_pixels
 
@@ -47,6 +48,8 @@ class RenderSetup:
     samples: int               # per pixel
     raytracing: str = None     # a key of EEVEE_RAYTRACING, or None: the scene's own setting
     lamp_split: object = None  # LampSplit
+    planar_capture: str = "off"  # off, auto (where the frame shows its reflector reflecting) or on
+    max_roughness: float = 1.0   # of the pixels SSR traces from (the auto capture's yardstick)
 
 
 def render_size(scene, resolution=None):
@@ -102,16 +105,24 @@ def decide_lamp_split(scene, engine, lamp_split):
     return LampSplit(method, has_lamps(scene), tuple(lamps) if method == "analytic" else ())
 
 
-def decide_render(scene, engine="eevee", samples=None, resolution=None, raytracing=None, lamp_split="auto"):
+def planar_capture_mode(fallback):
+    """RenderSetup.planar_capture for a ChainSettings.fallback."""
+    levels = fallback_levels(fallback)
+    return "auto" if levels is None else ("on" if "planar" in levels else "off")
+
+
+def decide_render(scene, engine="eevee", samples=None, resolution=None, raytracing=None, lamp_split="auto",
+                  fallback="off", max_roughness=1.0):
     """The RenderSetup of SCENE's current frame: SAMPLES and RESOLUTION default to the scene's
     own (render_samples, render_size); RAYTRACING names an EEVEE_RAYTRACING set-up (None: the
-    scene's own setting); LAMP_SPLIT is decide_lamp_split's. Bad input raises SSRError."""
+    scene's own setting); LAMP_SPLIT is decide_lamp_split's; FALLBACK (ChainSettings.fallback)
+    and MAX_ROUGHNESS decide the planar capture. Bad input raises SSRError."""
     require_camera(scene)
     if engine not in ENGINES:
         raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
     require_square_pixels(scene)
     return RenderSetup(engine, render_size(scene, resolution), render_samples(scene, engine, samples), raytracing,
-                       decide_lamp_split(scene, engine, lamp_split))
+                       decide_lamp_split(scene, engine, lamp_split), planar_capture_mode(fallback), max_roughness)
 
 
 def rendered_view_layer(scene):

@@ -15,6 +15,26 @@ def _setting(default, description, minimum=None, maximum=None, items=None, group
         "description": description, "min": minimum, "max": maximum, "items": items, "group": group})
 
 
+# The levels of the fallback hierarchy after the screen trace, in the order they are tried.
+FALLBACK_LEVELS = {"planar": "a capture of the scene mirrored in the main flat reflector"}
+
+
+def fallback_levels(fallback):
+    """The levels a ChainSettings.fallback asks for: None for auto (the frame decides), a tuple
+    otherwise (empty for off). A bad value raises SSRError."""
+    text = fallback.strip().lower()
+    if text == "auto":
+        return None
+    if text == "off":
+        return ()
+    levels = tuple(level.strip() for level in text.split(","))
+    unknown = [level for level in levels if level not in FALLBACK_LEVELS]
+    if unknown or not levels:
+        raise SSRError(f"fallback={fallback!r}: expected auto, off or a comma-separated list of "
+                       f"{', '.join(FALLBACK_LEVELS)}")
+    return levels
+
+
 @dataclass(frozen=True)
 class ChainSettings:
     """Parameters of the reflection chain; names follow EEVEE's where one exists.
@@ -99,6 +119,12 @@ class ChainSettings:
         group="fading")
     camera_facing_fade: float = _setting(
         0.5, "Fade rays that point back towards the camera (0: never fade)", 0.0, 1.0, group="fading")
+    # Beyond the screen: what resolves the rays the screen cannot.
+    fallback: str = _setting(
+        "auto", "Where the rays the screen cannot resolve are traced next: auto (the levels a frame needs), "
+                "off (probes and world only) or a comma-separated list of levels: "
+                + ", ".join(f"{level} ({description})" for level, description in FALLBACK_LEVELS.items()),
+        group="fallback")
     # Lamps: SSR replaces reflected light, never a highlight of a lamp it cannot see on screen,
     # so the engine's specular light is split into the two.
     lamp_split: str = _setting(
@@ -115,6 +141,9 @@ class ChainSettings:
                 "a fraction of a render's cost, exact for one lamp"),
                ("off", "Off", "No split: SSR replaces lamp highlights too (scenes without lamps)")),
         group="lamps")
+
+    def __post_init__(self):
+        fallback_levels(self.fallback)
 
     def with_overrides(self, overrides):
         """Return a copy with `key=value` strings (from --set) parsed by each field's type.

@@ -14,11 +14,12 @@ from ..core.settings import SETTINGS_SCHEMA, ChainSettings
 
 ENABLE_FIELD = "use_ssr"  # drawn in the panel header, not in a group
 DEFAULT_GROUP = "tracing"  # for schema fields without metadata["group"]
-GROUP_ORDER = ("tracing", "resolve", "temporal", "fading", "lamps")
+GROUP_ORDER = ("tracing", "resolve", "temporal", "fading", "fallback", "lamps")
 
 
 def _schema_property(spec):
-    """The bpy property of one schema field, typed by its default value; enums list metadata["items"]."""
+    """The bpy property of one schema field, typed by its default value; enums list metadata["items"],
+    other strings are text the schema checks."""
     metadata = spec.metadata
     common = {"name": spec.name.replace("_", " ").title(), "description": metadata.get("description") or "",
               "default": spec.default}
@@ -32,6 +33,8 @@ def _schema_property(spec):
         return bpy.props.FloatProperty(**common, **limits, precision=3)
     if kind is str and metadata.get("items"):
         return bpy.props.EnumProperty(items=metadata["items"], **common)
+    if kind is str:
+        return bpy.props.StringProperty(**common)
     raise TypeError(f"setting {spec.name!r}: no Blender property for a {kind.__name__} without items")
 
 
