@@ -10,8 +10,10 @@ import numpy as np
 
 from ..blender.colour_management import write_display_png
 from ..blender.gpu_context import ensure_backend
+from ..blender.planar_capture import PlanarCaptures
 from ..blender.render_passes import render_passes
 from ..blender.render_setup import decide_render
+from ..blender.viewport_capture import headless_viewport
 from ..core.chain import ChainState, run_chain
 from ..core.errors import SSRError
 from ..core.gpu_backend import StageTimer, download
@@ -32,12 +34,14 @@ class FrameImages:
     stats: dict
 
 
-def render_frame(scene, request, state=None):
+def render_frame(scene, request, state=None, captures=None):
     """Render the scene's current frame as REQUEST asks; returns (FrameImages, StageTimer).
 
     STATE (a ChainState) carries temporal history from the previous frame; the
     caller has begun the frame in it (state.begin_frame). Without one the frame
-    is a still, accumulated over `accumulate_iterations` iterations.
+    is a still, accumulated over `accumulate_iterations` iterations. CAPTURES
+    (blender.planar_capture.PlanarCaptures) draws the planar capture and keeps it
+    for the next frame; without one a capture is drawn for this frame alone.
     """
     timer = StageTimer(wait_for_gpu=request.time_stages)
     use_ssr = request.method == "ssr" and request.settings.use_ssr
@@ -47,7 +51,14 @@ def render_frame(scene, request, state=None):
                           fallback=settings.fallback if use_ssr else "off", max_roughness=settings.max_roughness)
     if setup.lamp_split.method == "analytic":
         timer.lap("lamp_split")  # reading the scene's lights; the chain adds its pass
-    passes = render_passes(scene, setup, timer)
+    own_captures = captures is None and setup.planar_capture != "off"
+    if own_captures:
+        captures = PlanarCaptures(headless_viewport())
+    try:
+        passes = render_passes(scene, setup, timer, captures)
+    finally:
+        if own_captures:
+            captures.release()
     timer.lap("render")  # reading the passes back
     if not use_ssr:
         return FrameImages(passes, passes.combined, read_layers(passes), {}), timer

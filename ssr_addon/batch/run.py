@@ -2,13 +2,16 @@
 written whole, resumable, with progress and a report (report.json)."""
 import ctypes
 import ctypes.util
+import functools
 import os
 
 import bpy
 
 from ..blender.lamp_renders import lamp_world_for_run
+from ..blender.planar_capture import PlanarCaptures
 from ..blender.render_setup import render_samples, render_size
 from ..blender.scene_io import require_camera, require_square_pixels
+from ..blender.viewport_capture import headless_viewport
 from ..core.chain import ChainState
 from ..core.errors import SSRError
 from ..core.gpu_backend import describe_gpu
@@ -47,7 +50,8 @@ class RenderRun:
     `frames()` renders and writes the frames one at a time, yielding each
     (frame, images) once written, so a modal operator can step it; the report
     (also report.json, rewritten after every frame) is in `report`.
-    RENDER(scene, request, state) renders one frame (default render_frame; an
+    RENDER(scene, request, state) renders one frame (default render_frame, with the
+    run's planar captures, reused from frame to frame while nothing they show moves; an
     operator's applies a comparison baseline). UNSAVED_CHANGES: the scene file on
     disk is not what renders, so the run can never be resumed.
     """
@@ -56,7 +60,7 @@ class RenderRun:
                  unsaved_changes=False):
         require_camera(scene)
         require_square_pixels(scene)
-        self.scene, self.request, self.log, self.render = scene, request, log, render or render_frame
+        self.scene, self.request, self.log, self.render = scene, request, log, render
         self.progress_stream = progress_stream
         self.frame_list = frame_numbers(scene, request.frames)
         prepare_output_folder(request.out_dir)
@@ -89,15 +93,21 @@ class RenderRun:
         # One frame is a still (accumulated until converged); a range is an animation whose
         # history carries from frame to frame, reset on a jump in the range or a camera cut.
         state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
-        with lamp_world_for_run():
-            yield from self._render_frames(warmup, first_missing, state)
+        captures = PlanarCaptures(headless_viewport()) if request.method == "ssr" else None
+        render = self.render or functools.partial(render_frame, captures=captures)
+        try:
+            with lamp_world_for_run():
+                yield from self._render_frames(warmup, first_missing, state, render)
+        finally:
+            if captures is not None:
+                captures.release()
         _summarise(self.report, self.log)
         write_json(self.report_path, self.report)
         failed = self.report["failed_frames"]
         if failed:
             raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
 
-    def _render_frames(self, warmup, first_missing, state):
+    def _render_frames(self, warmup, first_missing, state, render):
         request, scene = self.request, self.scene
         warned = set()
         progress = None  # started at the first written frame, so warm-up does not skew the ETA
@@ -107,7 +117,7 @@ class RenderRun:
             if frame == first_missing:
                 progress = FrameProgress(len(self.todo), self.progress_stream)
             try:
-                images, timer = self.render(scene, request, state)
+                images, timer = render(scene, request, state)
                 self._warn_once(images.passes, warned)
                 if frame in warmup:
                     continue

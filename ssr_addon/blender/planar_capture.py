@@ -1,11 +1,17 @@
 """The planar capture of a frame's main flat reflector (core.captures.PlanarCapture): the
-scene rendered from the frame's camera mirrored in the reflector's plane, the reflector and
+scene seen from the frame's camera mirrored in the reflector's plane, the reflector and
 whatever lies wholly behind its plane hidden.
 
 A mirror is not a rotation, so the capture camera is the mirrored camera with its x axis
 flipped back (and its lens shift with it): a camera like any other, whose matrices the chain
 traces with. The reflector is found from the scene (the largest flat mesh, as the planar
 baseline does) and kept only where the frame shows it reflecting (reflector_share).
+
+Captures are drawn through a 3D View (GPUOffScreen.draw_view3d): no fresh EEVEE instance,
+Combined at the frame's samples, the data passes at one. At 320x180 that is 0.5 s against
+a render's 7-10 s, and as close to a 64-sample render as a 16-sample render is
+(lab/capture_cost.py, docs/measurements.md). Where there is no 3D View, or the frame is a
+Cycles render, the capture is a render of its own.
 """
 import os
 
@@ -14,10 +20,11 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from ..core.captures import PlanarCapture, mirror_matrix
+from ..core.errors import SSRError
 from ..core.inputs import BACKGROUND_DEPTH
 from .baselines import largest_flat_mesh, rendered_geometry
 from .exr_render import pass_layer, render_to_exr
-from .scene_io import camera_matrices
+from .scene_io import camera_matrices, view_depth
 
 # Under fallback=auto the frame gets a capture when the reflector holds at least this share of
 # its reflected light (the specular colour of every pixel SSR traces from).
@@ -26,6 +33,7 @@ AUTO_MIN_REFLECTOR_SHARE = 0.05
 # are the reflector's.
 PLANE_TOLERANCE = 2e-3
 PLANE_NORMAL_COS = 0.99
+_FLIP_X = np.diag((-1.0, 1.0, 1.0, 1.0))
 
 
 def reflector_plane(scene, reflector):
@@ -36,7 +44,7 @@ def reflector_plane(scene, reflector):
     offset = -normal.dot(centre)
     if normal.dot(scene.camera.matrix_world.translation) + offset < 0.0:
         normal, offset = -normal, -offset
-    return (*normal, offset)
+    return tuple(float(value) for value in (*normal, offset))
 
 
 def find_reflector(scene):
@@ -53,50 +61,138 @@ def reflector_share(passes, plane, max_roughness):
     total = weight.sum()
     if not total > 0.0:
         return 0.0
-    height, width = passes.depth.shape
-    view_to_world = np.linalg.inv(np.asarray(passes.view_matrix, np.float64))
-    clip_to_view = np.linalg.inv(np.asarray(passes.projection_matrix, np.float64))
-    rows, columns = np.mgrid[0:height, 0:width]
-    ndc = np.stack([(columns + 0.5) / width * 2 - 1, 1 - (rows + 0.5) / height * 2], -1)
-    near = np.concatenate([ndc, -np.ones_like(ndc[..., :1]), np.ones_like(ndc[..., :1])], -1) @ clip_to_view.T
-    far = np.concatenate([ndc, np.ones_like(ndc[..., :1]), np.ones_like(ndc[..., :1])], -1) @ clip_to_view.T
-    near, far = near[..., :3] / near[..., 3:], far[..., :3] / far[..., 3:]
-    direction = far - near
-    with np.errstate(divide="ignore", invalid="ignore"):
-        view_points = near + direction * ((-passes.depth[..., None] - near[..., 2:]) / direction[..., 2:])
-    points = view_points @ view_to_world[:3, :3].T + view_to_world[:3, 3]
+    points = world_positions(passes.depth, passes.view_matrix, passes.projection_matrix)
     normal = np.asarray(plane[:3])
     on_plane = (np.abs(points @ normal + plane[3]) <= PLANE_TOLERANCE * np.maximum(passes.depth, 1.0)) \
         & (passes.normal @ normal >= PLANE_NORMAL_COS)
     return float(weight[on_plane & traced].sum() / total)
 
 
-def _behind_plane(obj, plane):
+def world_positions(depth, view_matrix, projection_matrix):
+    """(H, W, 3) world position of each pixel centre at its view DEPTH (image order)."""
+    height, width = depth.shape
+    view_to_world = np.linalg.inv(np.asarray(view_matrix, np.float64))
+    clip_to_view = np.linalg.inv(np.asarray(projection_matrix, np.float64))
+    rows, columns = np.mgrid[0:height, 0:width]
+    ndc = np.stack([(columns + 0.5) / width * 2 - 1, 1 - (rows + 0.5) / height * 2], -1)
+    ends = [np.concatenate([ndc, np.full_like(ndc[..., :1], z), np.ones_like(ndc[..., :1])], -1) @ clip_to_view.T
+            for z in (-1.0, 1.0)]
+    near, far = (end[..., :3] / end[..., 3:] for end in ends)
+    direction = far - near
+    with np.errstate(divide="ignore", invalid="ignore"):
+        view_points = near + direction * ((-depth[..., None] - near[..., 2:]) / direction[..., 2:])
+    return view_points @ view_to_world[:3, :3].T + view_to_world[:3, 3]
+
+
+def capture_matrices(scene, plane, size):
+    """(world to view, view to clip) of the capture camera of PLANE at SIZE: the scene camera
+    mirrored, its x axis (and so its lens shift) flipped back."""
+    view, projection = camera_matrices(scene, *size)
+    camera_to_world = mirror_matrix(plane) @ np.linalg.inv(np.asarray(view, np.float64)) @ _FLIP_X
+    return (np.linalg.inv(camera_to_world).astype(np.float32),
+            (_FLIP_X @ np.asarray(projection, np.float64) @ _FLIP_X).astype(np.float32))
+
+
+def _hidden_for_capture(scene, reflector, plane):
+    """The objects a capture of PLANE leaves out: the reflector and what lies wholly behind it."""
     normal, offset = Vector(plane[:3]), plane[3]
-    return all(normal.dot(obj.matrix_world @ Vector(corner)) + offset < 0.0 for corner in obj.bound_box)
+
+    def behind(obj):
+        return all(normal.dot(obj.matrix_world @ Vector(corner)) + offset < 0.0 for corner in obj.bound_box)
+    return [obj for obj in rendered_geometry(scene) if obj == reflector or behind(obj)]
+
+
+def _capture(scene, reflector, plane, view, projection, radiance, normal, depth):
+    depth = depth.copy()
+    depth[np.linalg.norm(normal, axis=-1) < 0.5] = BACKGROUND_DEPTH
+    return PlanarCapture(np.ascontiguousarray(radiance, dtype=np.float32), depth.astype(np.float32),
+                         np.ascontiguousarray(normal, dtype=np.float32), view, projection, plane, reflector.name)
+
+
+def draw_planar_capture(scene, view_layer, viewport, size, samples, reflector, plane, changes):
+    """The PlanarCapture of PLANE drawn through VIEWPORT (viewport_capture.ViewportCapture):
+    Combined at SAMPLES, normals and positions at one. Hides through CHANGES."""
+    for obj in _hidden_for_capture(scene, reflector, plane):
+        changes.set(obj, "hide_viewport", True)
+    view, projection = capture_matrices(scene, plane, size)
+    layers = viewport.draw_passes(scene, view_layer, view, projection, size, {
+        "Combined": ("COMBINED", 4, samples), "Normal": ("NORMAL", 3, 1), "Position": ("POSITION", 3, 1)})
+    return _capture(scene, reflector, plane, view, projection, layers["Combined"], layers["Normal"],
+                    view_depth(layers["Position"], view)[..., 0])
 
 
 def render_planar_capture(scene, size, reflector, plane, folder, changes):
-    """Render SCENE (set up for its frame's passes) from its camera mirrored in PLANE, REFLECTOR
-    hidden, at SIZE, into FOLDER; returns the PlanarCapture. Every change goes through CHANGES."""
+    """The PlanarCapture of PLANE as a render of SCENE (set up for its frame's passes) from a
+    capture camera, at SIZE, into FOLDER. Every change goes through CHANGES."""
     camera = scene.camera
     capture_data = camera.data.copy()
     capture_data.shift_x = -camera.data.shift_x
     capture_camera = bpy.data.objects.new("SSR Planar Capture", capture_data)
     scene.collection.objects.link(capture_camera)
     changes.on_restore(lambda: (bpy.data.objects.remove(capture_camera), bpy.data.cameras.remove(capture_data)))
-    location, rotation, _ = camera.matrix_world.decompose()
-    camera_to_world = np.array(Matrix.LocRotScale(location, rotation, None))
-    capture_camera.matrix_world = Matrix((mirror_matrix(plane) @ camera_to_world @ np.diag((-1.0, 1.0, 1.0, 1.0)))
-                                         .tolist())
+    view, _ = capture_matrices(scene, plane, size)
+    capture_camera.matrix_world = Matrix(np.linalg.inv(np.asarray(view, np.float64)).tolist())
     changes.set(scene, "camera", capture_camera)
-    for obj in rendered_geometry(scene):
-        if obj == reflector or _behind_plane(obj, plane):
-            changes.set(obj, "hide_render", True)
+    for obj in _hidden_for_capture(scene, reflector, plane):
+        changes.set(obj, "hide_render", True)
     layers = render_to_exr(scene, os.path.join(folder, "planar_capture.exr"), changes)
     view, projection = camera_matrices(scene, *size)
-    normal = pass_layer(layers, "Normal")
-    depth = pass_layer(layers, "Depth")[..., 0].copy()
-    depth[np.linalg.norm(normal, axis=-1) < 0.5] = BACKGROUND_DEPTH
-    return PlanarCapture(pass_layer(layers, "Combined"), depth, np.ascontiguousarray(normal), view, projection,
-                         tuple(float(value) for value in plane), reflector.name)
+    return _capture(scene, reflector, plane, view, projection, pass_layer(layers, "Combined"),
+                    pass_layer(layers, "Normal"), pass_layer(layers, "Depth")[..., 0])
+
+
+class PlanarCaptures:
+    """The planar captures of a run of frames: drawn through one 3D View where the file has one
+    (VIEWPORT: a viewport_capture.ViewportCapture, or None to render them), and reused while
+    nothing they show changed (capture_key): a still camera over a static set is captured once
+    a shot."""
+
+    def __init__(self, viewport=None):
+        self.viewport = viewport
+        self._key = self._capture = None
+
+    def capture(self, scene, view_layer, setup, passes, folder, changes):
+        """The PlanarCapture SETUP asks for of the frame's PASSES, or None: with planar_capture
+        auto, only where the main reflector holds AUTO_MIN_REFLECTOR_SHARE of the frame's
+        reflected light; on, wherever the scene has a flat mesh. SCENE is set up for the frame's
+        render through CHANGES."""
+        if setup.planar_capture == "off":
+            return None
+        found = find_reflector(scene)
+        if found is None:
+            if setup.planar_capture == "on":
+                raise SSRError(f"fallback=planar: scene '{scene.name}' has no flat mesh to capture the reflection of")
+            return None
+        if setup.planar_capture == "auto" and \
+                reflector_share(passes, found[1], setup.max_roughness) < AUTO_MIN_REFLECTOR_SHARE:
+            return None
+        key = (capture_key(scene), setup.size, setup.samples, setup.engine, found[1])
+        if key != self._key:
+            self._capture = draw_planar_capture(scene, view_layer, self.viewport, setup.size, setup.samples, *found,
+                                                changes) \
+                if self.viewport is not None and setup.engine == "eevee" else \
+                render_planar_capture(scene, setup.size, *found, folder, changes)
+            self._key = key
+        return self._capture
+
+    def release(self):
+        if self.viewport is not None:
+            self.viewport.release()
+        self._key = self._capture = None
+
+
+def capture_key(scene):
+    """What a capture of SCENE shows, as a value that changes when any of it does: the camera,
+    every object's transform and visibility, and the frame where anything else is animated
+    (a material, a light, the world)."""
+    objects = tuple((obj.name, tuple(map(tuple, obj.matrix_world)), obj.hide_render)
+                    for obj in scene.objects)
+    camera = scene.camera.data
+    animated = any(getattr(block, "animation_data", None) is not None and block.animation_data.action is not None
+                   for collection in (bpy.data.materials, bpy.data.lights, bpy.data.worlds, bpy.data.node_groups)
+                   for block in collection) or any(
+                       getattr(block, "node_tree", None) is not None and block.node_tree.animation_data is not None
+                       for collection in (bpy.data.materials, bpy.data.worlds) for block in collection)
+    return (objects, camera.lens, camera.shift_x, camera.shift_y, camera.ortho_scale, camera.type,
+            scene.frame_current if animated else None)
+

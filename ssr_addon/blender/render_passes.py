@@ -9,7 +9,6 @@ import tempfile
 
 import numpy as np
 
-from ..core.errors import SSRError
 from ..core.gpu_backend import lap
 from ..core.inputs import BACKGROUND_DEPTH, RenderPasses
 from ..core.lamp_split import LampLights
@@ -17,20 +16,20 @@ from .exr_render import pass_layer, render_to_exr
 from .lamp_renders import emitter_specular, lamp_specular, offscreen_lamps
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
-from .planar_capture import AUTO_MIN_REFLECTOR_SHARE, find_reflector, reflector_share, render_planar_capture
+from .planar_capture import PlanarCaptures
 from .render_setup import apply_render_setup, rendered_view_layer
 from .scene_io import camera_matrices
 
 
-def render_passes(scene, setup, timer=None):
+def render_passes(scene, setup, timer=None, captures=None):
     """Render SCENE's current frame as SETUP (render_setup.decide_render) says; returns RenderPasses.
 
     EEVEE's Specular Light holds lamp highlights and probe/world reflections together, so the
     highlights are split off as setup.lamp_split says (eevee_lamp_light). TIMER (a StageTimer)
     gets the engine's render as "render" and the split, the add-on's own cost, as "lamp_split":
     a second render (the analytic split is a pass of the chain). Where setup.planar_capture asks,
-    the passes carry the planar capture of the main reflector (planar_capture), timed as
-    "planar"."""
+    the passes carry the planar capture of the main reflector, timed as "planar": from CAPTURES
+    (planar_capture.PlanarCaptures, which may hold it from the frame before)."""
     camera = scene.camera
     view_layer = rendered_view_layer(scene)
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
@@ -57,27 +56,13 @@ def render_passes(scene, setup, timer=None):
         passes = passes_from_layers(layers, surface_layers(layers), specular_light, lamp_light, view, projection,
                                     (camera.data.clip_start, camera.data.clip_end), setup.engine, setup.samples,
                                     material_warnings, lamps)
-        passes.capture = planar_capture(scene, setup, passes, folder, changes)
+        if captures is None and setup.planar_capture != "off":
+            captures = PlanarCaptures()  # for this frame alone, rendered
+        passes.capture = captures.capture(scene, view_layer, setup, passes, folder, changes) \
+            if captures is not None else None
         if passes.capture is not None:
             lap(timer, "planar")
     return passes
-
-
-def planar_capture(scene, setup, passes, folder, changes):
-    """The PlanarCapture SETUP asks for of the frame's PASSES, or None: with planar_capture
-    auto, only where the main reflector holds AUTO_MIN_REFLECTOR_SHARE of the frame's
-    reflected light; on, wherever the scene has a flat mesh."""
-    if setup.planar_capture == "off":
-        return None
-    found = find_reflector(scene)
-    if found is None:
-        if setup.planar_capture == "on":
-            raise SSRError(f"fallback=planar: scene '{scene.name}' has no flat mesh to capture the reflection of")
-        return None
-    if setup.planar_capture == "auto" and \
-            reflector_share(passes, found[1], setup.max_roughness) < AUTO_MIN_REFLECTOR_SHARE:
-        return None
-    return render_planar_capture(scene, setup.size, *found, folder, changes)
 
 
 def eevee_lamp_light(split, layers, render_lamps):

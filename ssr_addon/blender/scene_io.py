@@ -87,3 +87,10 @@ def camera_matrices(scene, width, height):
         scale_x=scene.render.pixel_aspect_x, scale_y=scene.render.pixel_aspect_y)
     view = camera.matrix_world.inverted()
     return np.array(view, dtype=np.float32), np.array(projection, dtype=np.float32)
+
+
+def view_depth(position, view_matrix):
+    """Distance along the view axis of each pixel's world POSITION ((H, W, 3)), as an (H, W, 1) array."""
+    view = np.asarray(view_matrix, np.float32)
+    depth = -(position @ view[2, :3] + view[2, 3])
+    return depth[..., None].astype(np.float32)

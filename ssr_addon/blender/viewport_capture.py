@@ -25,6 +25,7 @@ from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
 from .render_passes import eevee_lamp_light, passes_from_layers, surface_layers
 from .render_setup import SSR_BASE_RAYTRACING, decide_lamp_split, use_eevee_raytracing
+from .scene_io import view_depth
 
 # Shadings whose viewport draw is EEVEE's and has render passes.
 CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
@@ -88,6 +89,23 @@ class ViewportCapture:
         return passes_from_layers(layers, surface, layers["Glossy Direct"], lamp_light, view_array, projection_array,
                                   clip, "eevee", scene.eevee.taa_samples, warnings, lamps)
 
+    def draw_passes(self, scene, view_layer, view_matrix, projection_matrix, size, passes):
+        """{name: (H, W, channels)} of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX at SIZE:
+        PASSES maps each name to (viewport render_pass, channels, TAA samples), drawn in Rendered
+        shading (the scene's world and lights)."""
+        with TemporaryChanges() as changes:
+            changes.set(self.space.shading, "type", "RENDERED")
+            self._prepare(scene, size, changes)
+            changes.set(scene.eevee, "taa_samples", scene.eevee.taa_samples)
+            view_layer.update()
+            view, projection = _matrix(view_matrix), _matrix(projection_matrix)
+            layers = {}
+            for name, (render_pass, channels, samples) in passes.items():
+                scene.eevee.taa_samples = samples  # 0 would mean unlimited
+                layers[name] = self._draw(scene, view_layer, view, projection, render_pass, channels)
+        view_layer.update()
+        return layers
+
     def combined(self, scene, view_layer, view_matrix, projection_matrix, size):
         """EEVEE's image of the view alone, (H, W, 4)."""
         with TemporaryChanges() as changes:
@@ -135,13 +153,6 @@ def _matrix(array):
     return mathutils.Matrix(np.asarray(array, np.float64).tolist())
 
 
-def view_depth(position, view_matrix):
-    """Distance along the view axis of each pixel's world POSITION ((H, W, 3)), as an (H, W, 1) array."""
-    view = np.asarray(view_matrix, np.float32)
-    depth = -(position @ view[2, :3] + view[2, 3])
-    return depth[..., None].astype(np.float32)
-
-
 def find_view3d(screen):
     """(space, region) of the largest 3D View of SCREEN, or None."""
     areas = [area for area in screen.areas if area.type == "VIEW_3D"] if screen else []
@@ -165,3 +176,12 @@ def headless_view3d():
     if found is None:
         raise SSRError("no 3D View to capture through: the open file's screen has none")
     return found
+
+
+def headless_viewport():
+    """A ViewportCapture through the open file's 3D View (headless_view3d), or None where it
+    has none."""
+    try:
+        return ViewportCapture(*headless_view3d())
+    except SSRError:
+        return None
