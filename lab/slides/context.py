@@ -105,7 +105,9 @@ class SlideContext:
             state.begin_frame(frame)
             timer = StageTimer()
             outputs = run_chain(inputs, chain_settings, state, timer)
-            images = FrameImages(passes, download(outputs["final"]), read_layers(passes, outputs), chain_stats(outputs))
+            layers = read_layers(passes, outputs)
+            images = FrameImages(passes, download(outputs["final"]), layers,
+                                 chain_stats(outputs, passes, layers, chain_settings))
             renders.append(Render(images, dict(timer.milliseconds), sum(timer.milliseconds.values())))
         return renders
 

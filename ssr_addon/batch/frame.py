@@ -17,7 +17,9 @@ from ..blender.viewport_capture import headless_viewport
 from ..core.chain import ChainState, run_chain
 from ..core.errors import SSRError
 from ..core.gpu_backend import StageTimer, download
-from ..core.inputs import ChainInputs
+from ..core.inputs import BACKGROUND_DEPTH, ChainInputs, crop_image
+from ..core.ray_outcomes import unresolved_shares
+from ..core.settings import fallback_levels
 from ..core.layers import exr_channels, read_layers
 from .outputs import write_exr, write_rgba_exr, written_together
 from .request import RENDER_RAYTRACING
@@ -34,53 +36,99 @@ class FrameImages:
     stats: dict
 
 
-def render_frame(scene, request, state=None, captures=None):
+class FrameFallbacks:
+    """The fallback hierarchy's state over a run of frames (a still is a run of one): the planar
+    captures (blender.planar_capture.PlanarCaptures, drawn through the file's 3D View where it
+    has one) and, under fallback=auto, whether the run has a guard band. The run's first frame
+    decides that from what its rays left unresolved (AUTO_GUARD_BAND_SHARE)."""
+
+    def __init__(self):
+        self.captures = PlanarCaptures(headless_viewport())
+        self.guard_band = None  # undecided until the first frame under auto
+
+    def release(self):
+        self.captures.release()
+
+
+# Under fallback=auto a run gets a guard band when at least this share of its first frame's
+# reflected light was left to the probes and world by rays that left the frame.
+AUTO_GUARD_BAND_SHARE = 0.02
+
+
+def render_frame(scene, request, state=None, fallbacks=None):
     """Render the scene's current frame as REQUEST asks; returns (FrameImages, StageTimer).
 
     STATE (a ChainState) carries temporal history from the previous frame; the
     caller has begun the frame in it (state.begin_frame). Without one the frame
-    is a still, accumulated over `accumulate_iterations` iterations. CAPTURES
-    (blender.planar_capture.PlanarCaptures) draws the planar capture and keeps it
-    for the next frame; without one a capture is drawn for this frame alone.
+    is a still, accumulated over `accumulate_iterations` iterations. FALLBACKS
+    (FrameFallbacks) holds the run's fallback state from frame to frame; without it
+    the frame is a run of its own. Where fallback=auto finds that the frame needs a
+    guard band, the frame is rendered again with one.
     """
+    own_fallbacks = fallbacks is None
+    fallbacks = fallbacks or FrameFallbacks()
+    try:
+        images, timer = _render_frame(scene, request, state, fallbacks)
+        if images.stats.get("needs_guard_band"):
+            if state is not None:
+                state.reset_history()
+                state.begin_frame(scene.frame_current, scene.camera.name)
+            images, timer = _render_frame(scene, request, state, fallbacks, timer)
+        return images, timer
+    finally:
+        if own_fallbacks:
+            fallbacks.release()
+
+
+def _render_frame(scene, request, state, fallbacks, earlier=None):
     timer = StageTimer(wait_for_gpu=request.time_stages)
-    use_ssr = request.method == "ssr" and request.settings.use_ssr
+    if earlier is not None:  # the render this one replaces counts as the guard band's cost
+        timer.milliseconds["guard_band"] = sum(earlier.milliseconds.values())
     settings = request.settings
+    use_ssr = request.method == "ssr" and settings.use_ssr
+    levels = fallback_levels(settings.fallback) if use_ssr else ()
+    guard_band = "guard_band" in levels if levels is not None else bool(fallbacks.guard_band)
     setup = decide_render(scene, request.engine, request.samples, request.resolution,
                           RENDER_RAYTRACING.get(request.method), lamp_split=settings.lamp_split if use_ssr else "off",
-                          fallback=settings.fallback if use_ssr else "off", max_roughness=settings.max_roughness)
+                          fallback=settings.fallback if use_ssr else "off", max_roughness=settings.max_roughness,
+                          guard_band=settings.guard_band_size if guard_band else 0.0)
     if setup.lamp_split.method == "analytic":
         timer.lap("lamp_split")  # reading the scene's lights; the chain adds its pass
-    own_captures = captures is None and setup.planar_capture != "off"
-    if own_captures:
-        captures = PlanarCaptures(headless_viewport())
-    try:
-        passes = render_passes(scene, setup, timer, captures)
-    finally:
-        if own_captures:
-            captures.release()
+    passes = render_passes(scene, setup, timer, fallbacks.captures)
     timer.lap("render")  # reading the passes back
     if not use_ssr:
         return FrameImages(passes, passes.combined, read_layers(passes), {}), timer
     ensure_backend()
-    inputs = ChainInputs.from_passes(passes, request.settings, timer)
+    inputs = ChainInputs.from_passes(passes, settings, timer)
     if state is None:
         state = ChainState.still()
         state.begin_frame(scene.frame_current)
-    outputs = run_chain(inputs, request.settings, state, timer)
-    images = FrameImages(passes, download(outputs["final"]), read_layers(passes, outputs),
-                         chain_stats(outputs))
+    outputs = run_chain(inputs, settings, state, timer)
+    crop = passes.crop
+    layers = {name: crop_image(image, crop) for name, image in read_layers(passes, outputs).items()}
+    passes = passes.cropped()
+    stats = chain_stats(outputs, passes, layers, settings)
+    if levels is None and fallbacks.guard_band is None:
+        fallbacks.guard_band = stats["unresolved"]["left_frame"] >= AUTO_GUARD_BAND_SHARE
+        if fallbacks.guard_band:
+            stats["needs_guard_band"] = True
+    images = FrameImages(passes, crop_image(download(outputs["final"]), crop), layers, stats)
     timer.lap("readback")
     return images, timer
 
 
-def chain_stats(outputs):
-    """The chain's work in a frame: iterations, rays traced in the last one, and the share of
-    them that were expensive (Hi-Z)."""
+def chain_stats(outputs, passes, layers, settings):
+    """The chain's work in a frame: iterations, rays traced in the last one, the share of them
+    that were expensive (Hi-Z), and the share of the reflected light it left to the probes and
+    world, by why (core.ray_outcomes)."""
     ray_class = download(outputs["ray_stats"])[..., 0]  # one entry per traced ray
     traced = np.count_nonzero(ray_class > 0)
+    traced_pixels = (passes.depth < BACKGROUND_DEPTH) & (passes.roughness <= settings.max_roughness)
+    unresolved = unresolved_shares(layers["SSR Resolved By"][..., 0], layers["SSR Confidence"][..., 0],
+                                   passes.specular_color.mean(axis=-1), traced_pixels)
     return {"iterations": outputs.iterations, "traced_rays": traced,
-            "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4) if traced else 0.0}
+            "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4) if traced else 0.0,
+            "unresolved": unresolved}
 
 
 def write_frame(out_dir, frame, images, scene, prefix="frame_"):

@@ -8,14 +8,12 @@ import os
 import bpy
 
 from ..blender.lamp_renders import lamp_world_for_run
-from ..blender.planar_capture import PlanarCaptures
 from ..blender.render_setup import render_samples, render_size
 from ..blender.scene_io import require_camera, require_square_pixels
-from ..blender.viewport_capture import headless_viewport
 from ..core.chain import ChainState
 from ..core.errors import SSRError
 from ..core.gpu_backend import describe_gpu
-from .frame import render_frame, write_frame
+from .frame import FrameFallbacks, render_frame, write_frame
 from .outputs import prepare_output_folder, write_json
 from .progress_bar import FrameProgress
 from .request import frame_numbers
@@ -51,8 +49,8 @@ class RenderRun:
     (frame, images) once written, so a modal operator can step it; the report
     (also report.json, rewritten after every frame) is in `report`.
     RENDER(scene, request, state) renders one frame (default render_frame, with the
-    run's planar captures, reused from frame to frame while nothing they show moves; an
-    operator's applies a comparison baseline). UNSAVED_CHANGES: the scene file on
+    run's FrameFallbacks: planar captures reused from frame to frame while nothing they
+    show moves, the guard band decided once; an operator's applies a comparison baseline). UNSAVED_CHANGES: the scene file on
     disk is not what renders, so the run can never be resumed.
     """
 
@@ -93,14 +91,14 @@ class RenderRun:
         # One frame is a still (accumulated until converged); a range is an animation whose
         # history carries from frame to frame, reset on a jump in the range or a camera cut.
         state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
-        captures = PlanarCaptures(headless_viewport()) if request.method == "ssr" else None
-        render = self.render or functools.partial(render_frame, captures=captures)
+        fallbacks = FrameFallbacks() if request.method == "ssr" else None
+        render = self.render or functools.partial(render_frame, fallbacks=fallbacks)
         try:
             with lamp_world_for_run():
                 yield from self._render_frames(warmup, first_missing, state, render)
         finally:
-            if captures is not None:
-                captures.release()
+            if fallbacks is not None:
+                fallbacks.release()
         _summarise(self.report, self.log)
         write_json(self.report_path, self.report)
         failed = self.report["failed_frames"]

@@ -166,12 +166,12 @@ class PlanarCaptures:
         if setup.planar_capture == "auto" and \
                 reflector_share(passes, found[1], setup.max_roughness) < AUTO_MIN_REFLECTOR_SHARE:
             return None
-        key = (capture_key(scene), setup.size, setup.samples, setup.engine, found[1])
+        key = (capture_key(scene), setup.rendered_size, setup.samples, setup.engine, found[1])
         if key != self._key:
-            self._capture = draw_planar_capture(scene, view_layer, self.viewport, setup.size, setup.samples, *found,
+            self._capture = draw_planar_capture(scene, view_layer, self.viewport, setup.rendered_size, setup.samples, *found,
                                                 changes) \
                 if self.viewport is not None and setup.engine == "eevee" else \
-                render_planar_capture(scene, setup.size, *found, folder, changes)
+                render_planar_capture(scene, setup.rendered_size, *found, folder, changes)
             self._key = key
         return self._capture
 

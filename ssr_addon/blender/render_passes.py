@@ -37,7 +37,7 @@ def render_passes(scene, setup, timer=None, captures=None):
         material_warnings = tuple(add_material_aovs(scene, view_layer, changes))
         layers = render_to_exr(scene, os.path.join(folder, "passes.exr"), changes)
         lap(timer, "render")
-        view, projection = camera_matrices(scene, *setup.size)
+        view, projection = camera_matrices(scene, *setup.rendered_size)
         if setup.engine == "eevee":
             specular_light = pass_layer(layers, "Glossy Direct")
             lamp_light, lamps = eevee_lamp_light(setup.lamp_split, layers,
@@ -56,6 +56,7 @@ def render_passes(scene, setup, timer=None, captures=None):
         passes = passes_from_layers(layers, surface_layers(layers), specular_light, lamp_light, view, projection,
                                     (camera.data.clip_start, camera.data.clip_end), setup.engine, setup.samples,
                                     material_warnings, lamps)
+        passes.crop = setup.crop
         if captures is None and setup.planar_capture != "off":
             captures = PlanarCaptures()  # for this frame alone, rendered
         passes.capture = captures.capture(scene, view_layer, setup, passes, folder, changes) \

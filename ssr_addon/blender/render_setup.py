@@ -7,12 +7,15 @@ where nearby geometry blocks it. Without ray tracing that occlusion is missing: 
 back wall came out 56 % brighter than Cycles', and SSR's FLIP on glossy_corridor's reflective
 pixels was 2.3x higher.
 """
+import math
 from dataclasses import dataclass
+
+import numpy as np
 
 from ..core.errors import SSRError
 from ..core.settings import fallback_levels
 from .lights import require_modelled, scene_lamps
-from .scene_io import require_camera, require_square_pixels
+from .scene_io import camera_matrices, require_camera, require_square_pixels
 
 ENGINES = {"eevee": "BLENDER_EEVEE", "cycles": "CYCLES"}
 # EEVEE's ray tracing set-ups, (method, options): its own screen-space ray tracing, the peer a
@@ -50,6 +53,17 @@ class RenderSetup:
     lamp_split: object = None  # LampSplit
     planar_capture: str = "off"  # off, auto (where the frame shows its reflector reflecting) or on
     max_roughness: float = 1.0   # of the pixels SSR traces from (the auto capture's yardstick)
+    guard_band: tuple = (0, 0)   # pixels rendered beyond the frame on each side, (x, y)
+
+    @property
+    def rendered_size(self):
+        """(width, height) of the render: the frame and its guard band."""
+        return self.size[0] + 2 * self.guard_band[0], self.size[1] + 2 * self.guard_band[1]
+
+    @property
+    def crop(self):
+        """(x, y, width, height) of the frame in the render (image order), or None without a band."""
+        return (*self.guard_band, *self.size) if any(self.guard_band) else None
 
 
 def render_size(scene, resolution=None):
@@ -105,6 +119,37 @@ def decide_lamp_split(scene, engine, lamp_split):
     return LampSplit(method, has_lamps(scene), tuple(lamps) if method == "analytic" else ())
 
 
+def guard_band_pixels(size, share):
+    """(x, y) pixels of a guard band of SHARE of each side's length, even so that half-resolution
+    quads fall alike in the band and in the frame."""
+    return tuple(2 * math.ceil(share * length / 2) for length in size)
+
+
+def widen_camera(scene, setup, changes):
+    """Through CHANGES, widen SCENE's camera for SETUP's guard band: the same pixels, lens and
+    shift, on a sensor (or orthographic scale) larger by the band, so the frame is the
+    render's centre crop. A camera whose projection does not follow raises SSRError."""
+    camera = scene.camera.data
+    (width, height), (banded_width, banded_height) = setup.size, setup.rendered_size
+    _, projection = camera_matrices(scene, width, height)
+    if camera.type == "PANO":
+        raise SSRError("the guard band needs a perspective or orthographic camera, not a panoramic one")
+    # Horizontal fit keeps the projection's x scale in hand; shifts count in sensor widths then.
+    vertical_fit = camera.sensor_fit == "VERTICAL" or (camera.sensor_fit == "AUTO" and height > width)
+    shift_scale = (height / width if vertical_fit else 1.0) * width / banded_width
+    widen = banded_width / width
+    changes.set(camera, "sensor_fit", "HORIZONTAL")
+    if camera.type == "ORTHO":
+        changes.set(camera, "ortho_scale", 2.0 / projection[0, 0] * widen)
+    else:
+        changes.set(camera, "sensor_width", 2.0 * camera.lens / projection[0, 0] * widen)
+    changes.set_all(camera, shift_x=camera.shift_x * shift_scale, shift_y=camera.shift_y * shift_scale)
+    _, banded = camera_matrices(scene, banded_width, banded_height)
+    expected = np.diag((width / banded_width, height / banded_height, 1.0, 1.0)) @ projection
+    if not np.allclose(banded, expected, rtol=1e-4, atol=1e-5):
+        raise SSRError(f"camera '{scene.camera.name}': cannot widen it for the guard band exactly")
+
+
 def planar_capture_mode(fallback):
     """RenderSetup.planar_capture for a ChainSettings.fallback."""
     levels = fallback_levels(fallback)
@@ -112,17 +157,20 @@ def planar_capture_mode(fallback):
 
 
 def decide_render(scene, engine="eevee", samples=None, resolution=None, raytracing=None, lamp_split="auto",
-                  fallback="off", max_roughness=1.0):
+                  fallback="off", max_roughness=1.0, guard_band=0.0):
     """The RenderSetup of SCENE's current frame: SAMPLES and RESOLUTION default to the scene's
     own (render_samples, render_size); RAYTRACING names an EEVEE_RAYTRACING set-up (None: the
     scene's own setting); LAMP_SPLIT is decide_lamp_split's; FALLBACK (ChainSettings.fallback)
-    and MAX_ROUGHNESS decide the planar capture. Bad input raises SSRError."""
+    and MAX_ROUGHNESS decide the planar capture; GUARD_BAND is the share of each side rendered
+    beyond the frame (0: none). Bad input raises SSRError."""
     require_camera(scene)
     if engine not in ENGINES:
         raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
     require_square_pixels(scene)
-    return RenderSetup(engine, render_size(scene, resolution), render_samples(scene, engine, samples), raytracing,
-                       decide_lamp_split(scene, engine, lamp_split), planar_capture_mode(fallback), max_roughness)
+    size = render_size(scene, resolution)
+    return RenderSetup(engine, size, render_samples(scene, engine, samples), raytracing,
+                       decide_lamp_split(scene, engine, lamp_split), planar_capture_mode(fallback), max_roughness,
+                       guard_band_pixels(size, guard_band))
 
 
 def rendered_view_layer(scene):
@@ -146,7 +194,10 @@ def apply_render_setup(setup, scene, view_layer, changes):
     """Through CHANGES, set SCENE up to render SETUP's passes on VIEW_LAYER alone."""
     render = scene.render
     changes.set(render, "engine", ENGINES[setup.engine])
-    changes.set_all(render, resolution_x=setup.size[0], resolution_y=setup.size[1], resolution_percentage=100)
+    changes.set_all(render, resolution_x=setup.rendered_size[0], resolution_y=setup.rendered_size[1],
+                    resolution_percentage=100)
+    if setup.crop is not None:
+        widen_camera(scene, setup, changes)
     changes.set(render, "use_compositing", False)
     changes.set(render, "use_sequencer", False)
     for layer in scene.view_layers:

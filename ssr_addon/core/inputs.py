@@ -1,6 +1,6 @@
 """What the chain starts from: the engine's passes of one frame (RenderPasses, numpy, from a
 render or a viewport capture) and the same uploaded as textures (ChainInputs)."""
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
@@ -48,6 +48,21 @@ class RenderPasses:
         x, y, crop_width, crop_height = self.crop or (0, 0, width, height)
         return (x, height - y - crop_height, x + crop_width, height - y)
 
+    def cropped(self):
+        """These passes as the requested frame: the guard band (crop) cut off, the projection
+        the frame's own camera's; the passes themselves without a band."""
+        if self.crop is None:
+            return self
+        x, y, width, height = self.crop
+        rendered_height, rendered_width = self.depth.shape
+        images = {spec.name: crop_image(getattr(self, spec.name), self.crop) for spec in fields(self)
+                  if isinstance(getattr(self, spec.name), np.ndarray) and getattr(self, spec.name).ndim >= 2
+                  and getattr(self, spec.name).shape[:2] == self.depth.shape}
+        lamps = self.lamps if self.lamps is None else replace(self.lamps, shadow=crop_image(self.lamps.shadow,
+                                                                                              self.crop))
+        projection = np.diag((rendered_width / width, rendered_height / height, 1.0, 1.0)) @ self.projection_matrix
+        return replace(self, **images, lamps=lamps, projection_matrix=projection.astype(np.float32), crop=None)
+
     @property
     def specular_direct(self):
         """(H, W, 3) lamp highlights, kept as they are; where the chain splits them off
@@ -62,6 +77,14 @@ class RenderPasses:
         ray tracing on, EEVEE's own traced reflections (EEVEE); world, emissive and other
         surfaces (Cycles). As lamp_split.glsl splits it on the GPU."""
         return np.maximum(self.specular_light - self.specular_direct, 0.0)
+
+
+def crop_image(image, crop):
+    """The (x, y, width, height) CROP of IMAGE (image order), or IMAGE where CROP is None."""
+    if crop is None:
+        return image
+    x, y, width, height = crop
+    return np.ascontiguousarray(image[y:y + height, x:x + width])
 
 
 @dataclass

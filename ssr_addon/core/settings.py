@@ -16,7 +16,8 @@ def _setting(default, description, minimum=None, maximum=None, items=None, group
 
 
 # The levels of the fallback hierarchy after the screen trace, in the order they are tried.
-FALLBACK_LEVELS = {"planar": "a capture of the scene mirrored in the main flat reflector"}
+FALLBACK_LEVELS = {"guard_band": "the frame rendered wider, so rays that leave it find what lies just outside",
+                   "planar": "a capture of the scene mirrored in the main flat reflector"}
 
 
 def fallback_levels(fallback):
@@ -125,6 +126,9 @@ class ChainSettings:
                 "off (probes and world only) or a comma-separated list of levels: "
                 + ", ".join(f"{level} ({description})" for level, description in FALLBACK_LEVELS.items()),
         group="fallback")
+    guard_band_size: float = _setting(
+        0.06, "Guard band: share of the frame's width and height rendered beyond each of its sides "
+              "(4-8 % gives most of the benefit for 17-35 % more pixels)", 0.01, 0.25, group="fallback")
     # Lamps: SSR replaces reflected light, never a highlight of a lamp it cannot see on screen,
     # so the engine's specular light is split into the two.
     lamp_split: str = _setting(

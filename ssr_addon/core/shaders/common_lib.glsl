@@ -90,10 +90,12 @@ uint pcg_hash(uint value)
   return (word >> 22u) ^ word;
 }
 
-/* Two uniform numbers per pixel and SEED (0: the pixel's fixed rotation). */
+/* Two uniform numbers per pixel and SEED (0: the pixel's fixed rotation). Pixels count from
+ * the requested frame's corner, so a frame draws the same numbers with or without a guard band. */
 vec2 pixel_noise(ivec2 pixel, uint seed_offset)
 {
-  uint seed = pcg_hash(uint(pixel.x) + pcg_hash(uint(pixel.y) + pcg_hash(seed_offset)));
+  ivec2 frame_pixel = pixel - ivec2(params.frame_rect.xy);
+  uint seed = pcg_hash(uint(frame_pixel.x) + pcg_hash(uint(frame_pixel.y) + pcg_hash(seed_offset)));
   return vec2(seed & 0xffffu, seed >> 16u) / 65536.0;
 }
 
