@@ -1,10 +1,12 @@
 """Views of the scene besides the frame's own, which rays that leave the frame or pass behind
-what it shows are traced in ("Beyond the screen"): a large flat reflector's planar capture."""
+what it shows are traced in ("Beyond the screen"): a large flat reflector's planar capture and
+a depth cube map."""
 from dataclasses import dataclass
 
 import numpy as np
 
 from .gpu_backend import upload
+from .inputs import BACKGROUND_DEPTH
 
 
 @dataclass
@@ -33,3 +35,66 @@ def mirror_matrix(plane):
     reflection[:3, :3] -= 2.0 * np.outer(normal, normal)
     reflection[:3, 3] = -2.0 * offset * normal
     return reflection
+
+
+# The cube's faces in the order the shader numbers them (cube_trace.glsl: 2 * axis + negative):
+# the direction each face camera looks and its up direction.
+CUBE_FACES = (((1, 0, 0), (0, 0, 1)), ((-1, 0, 0), (0, 0, 1)), ((0, 1, 0), (0, 0, 1)), ((0, -1, 0), (0, 0, 1)),
+              ((0, 0, 1), (0, 1, 0)), ((0, 0, -1), (0, 1, 0)))
+
+
+def cube_face_views(centre):
+    """(6, 4, 4) world to view matrices of the cube's face cameras at CENTRE (Blender's camera
+    convention: looking down -Z, Y up)."""
+    views = []
+    for forward, up in CUBE_FACES:
+        back = -np.asarray(forward, np.float64)
+        right = np.cross(up, back)
+        camera = np.eye(4)
+        camera[:3, 0], camera[:3, 1], camera[:3, 2] = right, np.cross(back, right), back
+        camera[:3, 3] = centre
+        views.append(np.linalg.inv(camera))
+    return np.array(views)
+
+
+def cube_face_projection(clip_start, clip_end):
+    """(4, 4) projection of a 90-degree square face."""
+    near, far = clip_start, clip_end
+    return np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0],
+                     [0, 0, (far + near) / (near - far), 2 * far * near / (near - far)], [0, 0, -1.0, 0]])
+
+
+def cube_atlas(faces):
+    """The six FACES ((N, N, C) each, image order, CUBE_FACES order) in one (2N, 3N, C) atlas,
+    face f at column f % 3 and row f // 3 counted from the bottom, as the GPU reads it."""
+    side = faces[0].shape[0]
+    atlas = np.zeros((2 * side, 3 * side) + faces[0].shape[2:], np.float32)
+    for index, face in enumerate(faces):
+        row = (1 - index // 3) * side  # image order: the bottom row of faces comes last
+        atlas[row:row + side, (index % 3) * side:(index % 3 + 1) * side] = face
+    return atlas
+
+
+@dataclass
+class CubeCapture:
+    """Radiance and distance in six 90-degree faces from CENTRE, a point in free space among
+    the reflectors (blender.cube_capture), packed by cube_atlas."""
+    radiance: np.ndarray         # (2N, 3N, 4) the lit scene
+    depth: np.ndarray            # (2N, 3N) distance along each face camera's view axis; BACKGROUND_DEPTH: world
+    centre: tuple                # (x, y, z) world
+    face_views: np.ndarray       # (6, 4, 4) cube_face_views(centre)
+
+    @property
+    def side(self):
+        return self.depth.shape[0] // 2
+
+    @property
+    def reach(self):
+        """The farthest any surface the cube shows lies from its centre (a face's corner is
+        sqrt(3) times its axis distance away)."""
+        shown = self.depth[self.depth < BACKGROUND_DEPTH]
+        return float(np.sqrt(3.0) * shown.max()) if shown.size else 0.0
+
+    def textures(self):
+        """The cube as the chain's resources (gpu_passes.CUBE_TRACE reads them)."""
+        return {"cube_radiance": upload(self.radiance), "cube_depth": upload(self.depth)}

@@ -22,7 +22,7 @@ from .gpu_backend import TexturePool, lap, uniform_buffer
 from .inputs import BACKGROUND_DEPTH
 from .lamp_split import lamp_block
 from .pyramids import build_pyramid
-from .uniforms import HISTORY_MODES, MAX_PYRAMID_LEVELS, RAY_SAMPLING_CODES
+from .uniforms import CAPTURE_LEVELS, HISTORY_MODES, MAX_PYRAMID_LEVELS, RAY_SAMPLING_CODES
 
 
 @dataclass
@@ -84,6 +84,7 @@ class FrameContext:
     hiz_rects: list = None       # each Hi-Z level's place in the hiz atlas
     color_rects: list = None
     capture_color_rects: list = ()  # of the planar capture's colour pyramid
+    cube_color_rects: list = ()     # of the cube's
 
     @property
     def resolve_size(self):
@@ -138,18 +139,30 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "history_frames": history_frames,
         "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
         **_capture_params(inputs.capture, frame.capture_color_rects),
+        **_cube_params(inputs.cube, frame.cube_color_rects, settings),
+        "capture_levels": (CAPTURE_LEVELS["planar"] if inputs.capture is not None else 0)
+                          | (CAPTURE_LEVELS["cube"] if inputs.cube is not None else 0),
     })
 
 
 def _capture_params(capture, color_rects):
     if capture is None:
-        return {"use_capture": 0, "capture_world_to_view": np.eye(4), "capture_view_to_clip": np.eye(4),
+        return {"capture_world_to_view": np.eye(4), "capture_view_to_clip": np.eye(4),
                 "capture_plane": (0, 0, 0, 0), "capture_size": (1, 1), "capture_color_levels": 0,
                 "capture_color_level": _level_rects(())}
-    return {"use_capture": 1, "capture_world_to_view": capture.view_matrix,
+    return {"capture_world_to_view": capture.view_matrix,
             "capture_view_to_clip": capture.projection_matrix, "capture_plane": capture.plane,
             "capture_size": capture.depth.shape[::-1], "capture_color_levels": len(color_rects),
             "capture_color_level": _level_rects(color_rects)}
+
+
+def _cube_params(cube, color_rects, settings):
+    if cube is None:
+        return {"cube_world_to_face": np.zeros((6, 4, 4)), "cube_centre": (0, 0, 0, 1), "cube_color_levels": 0,
+                "cube_steps": 0, "cube_reach": 0.0, "cube_color_level": _level_rects(())}
+    return {"cube_world_to_face": cube.face_views, "cube_centre": (*cube.centre, cube.side),
+            "cube_color_levels": len(color_rects), "cube_steps": settings.cube_steps, "cube_reach": cube.reach,
+            "cube_color_level": _level_rects(color_rects)}
 
 
 def _level_rects(rects):
@@ -192,6 +205,13 @@ class FrameRun:
                 self.resources["capture_radiance"], gpu_passes.COLOR_DOWNSAMPLE, gpu_passes.PYRAMID_PACK, pool,
                 None if settings.use_cone_filter else 1, name="capture_color")
             lap(timer, gpu_passes.PLANAR_TRACE.stage, self.resources["capture_color"])
+        if inputs.cube is not None:
+            # Coarse levels blur across the faces' seams: a cone that wide is the lobe of a rough
+            # surface, which barely shows them.
+            self.resources["cube_color"], frame.cube_color_rects = build_pyramid(
+                self.resources["cube_radiance"], gpu_passes.COLOR_DOWNSAMPLE, gpu_passes.PYRAMID_PACK, pool,
+                None if settings.use_cone_filter else 1, name="cube_color")
+            lap(timer, gpu_passes.CUBE_TRACE.stage, self.resources["cube_color"])
         if not state.sequence.has_history:  # the last frame's reflection is no yardstick for this one
             state.convergence.forget()
         self.iterations = 0

@@ -214,13 +214,20 @@ PLANAR_TRACE = GPUPass(
              Output("ray_outcome_img", size="trace", layers=(
                  Layer("SSR Resolved By", "V", channels=(3,), view=DebugView(
                      "RESOLVED_BY", "Resolved By",
-                     "Which level resolved each pixel's ray: 1 screen, 2 guard band, 3 planar capture; "
-                     "and why the rest fell to the probes/world: 4 left the frame, 5 passed behind what it "
-                     "shows, 6 escaped; 0 no ray")),))),
+                     "Which level resolved each pixel's ray: 1 screen, 2 guard band, 3 planar capture, "
+                     "4 depth cube map; and why the rest fell to the probes/world: 5 left the frame, 6 passed "
+                     "behind what it shows, 7 escaped; 0 no ray")),))),
     libraries=(*COMMON_LIBRARIES, "screen_ray_lib.glsl", "linear_march_lib.glsl", "ggx_lib.glsl",
                "history_lib.glsl"),
     defines=_CAPTURE_SCREEN, runs=lambda frame: frame.inputs.capture is not None,
     skipped=(("capture_hit", "ray_hit"), ("ray_outcome", "ray_stats")))
+CUBE_TRACE = GPUPass(
+    "cube_trace", "cube_trace.glsl", stage="cube",
+    samplers=("ray_hit_tx", "ray_dir_tx", "capture_hit_tx", "ray_outcome_tx", "depth_tx", "normal_tx", "roughness_tx",
+              "history_record_tx", "cube_depth_tx", "cube_color_tx"),
+    outputs=(Output("capture_hit_img", size="trace"), Output("ray_outcome_img", size="trace")),
+    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"),
+    runs=lambda frame: frame.inputs.cube is not None)
 RESOLVE = GPUPass(
     "resolve", "resolve.glsl", stage="resolve",
     samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx",
@@ -284,7 +291,7 @@ DISPLAY_TRANSFORM = GPUPass(
 
 # What a frame runs, in order (chain.FrameRun): once a frame, once an iteration, once a composite.
 FRAME_PASSES = (LAMP_SPLIT,)
-ITERATION_PASSES = (TRACE, PLANAR_TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
+ITERATION_PASSES = (TRACE, PLANAR_TRACE, CUBE_TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
 CHAIN_PASSES = (*FRAME_PASSES, HIZ_DOWNSAMPLE, COLOR_DOWNSAMPLE, *ITERATION_PASSES, CONVERGENCE_TILES, COMPOSITE)
 # The chain's stages as a StageTimer names them, in order.
 CHAIN_STAGES = tuple(dict.fromkeys(gpu_pass.stage for gpu_pass in CHAIN_PASSES if gpu_pass.stage))

@@ -33,6 +33,7 @@ class RenderPasses:
     material_warnings: tuple = ()  # materials whose roughness/F0 the AOVs could not read, and what was assumed
     lamps: object = None         # lamp_split.LampLights the chain splits off the specular light (analytic)
     capture: object = None       # captures.PlanarCapture rays off the main reflector are traced in
+    cube: object = None          # captures.CubeCapture what nothing else resolves is traced in
     crop: tuple = None           # (x, y, width, height) of the requested frame, image order, where the
                                  # passes hold a guard band around it; None: all of them
 
@@ -94,7 +95,8 @@ class ChainInputs:
     roughness, combined, specular_color, f0 (specular reflectance at normal incidence, for FG),
     motion (screen offset to the previous frame in pixels, the Vector pass) and either
     specular_indirect or, where LAMPS are given, specular_light and shadow, which the chain's
-    first pass splits; with a CAPTURE, its capture_radiance, capture_depth and capture_normal."""
+    first pass splits; with a CAPTURE, its capture_radiance, capture_depth and capture_normal;
+    with a CUBE, cube_radiance and cube_depth."""
     textures: dict
     view_matrix: np.ndarray
     projection_matrix: np.ndarray
@@ -104,6 +106,7 @@ class ChainInputs:
     ray_budget: tuple = (1.0, 1.0)
     lamps: tuple = None          # lamp_split.Lamp records the chain splits off the specular light
     capture: object = None       # captures.PlanarCapture (its textures are capture_* resources)
+    cube: object = None          # captures.CubeCapture (cube_* resources)
     frame_rect: tuple = None     # RenderPasses.frame_rect; None: the whole frame
 
     @property
@@ -119,8 +122,9 @@ class ChainInputs:
                     "normal": upload(passes.normal), "roughness": upload(passes.roughness),
                     "specular_color": upload(passes.specular_color), "f0": upload(passes.f0),
                     "motion": upload(passes.motion)}
-        if passes.capture is not None:
-            textures.update(passes.capture.textures())
+        for capture in (passes.capture, passes.cube):
+            if capture is not None:
+                textures.update(capture.textures())
         if passes.lamps is None:
             textures["specular_indirect"] = upload(passes.specular_indirect)
         else:
@@ -130,6 +134,6 @@ class ChainInputs:
                      clip_start=passes.clip_start, clip_end=passes.clip_end,
                      ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings),
                      lamps=None if passes.lamps is None else passes.lamps.lamps, capture=passes.capture,
-                     frame_rect=passes.frame_rect)
+                     cube=passes.cube, frame_rect=passes.frame_rect)
         lap(timer, "upload")
         return inputs

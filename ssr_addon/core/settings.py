@@ -17,7 +17,8 @@ def _setting(default, description, minimum=None, maximum=None, items=None, group
 
 # The levels of the fallback hierarchy after the screen trace, in the order they are tried.
 FALLBACK_LEVELS = {"guard_band": "the frame rendered wider, so rays that leave it find what lies just outside",
-                   "planar": "a capture of the scene mirrored in the main flat reflector"}
+                   "planar": "a capture of the scene mirrored in the main flat reflector",
+                   "cube": "a depth cube map from a point in free space, traced with parallax and occlusion"}
 
 
 def fallback_levels(fallback):
@@ -129,6 +130,9 @@ class ChainSettings:
     guard_band_size: float = _setting(
         0.06, "Guard band: share of the frame's width and height rendered beyond each of its sides "
               "(4-8 % gives most of the benefit for 17-35 % more pixels)", 0.01, 0.25, group="fallback")
+    cube_size: int = _setting(128, "Depth cube map: pixels along each face's side", 16, 2048, group="fallback")
+    cube_steps: int = _setting(64, "Depth cube map: march steps per ray before the secant search", 8, 512,
+                               group="fallback")
     # Lamps: SSR replaces reflected light, never a highlight of a lamp it cannot see on screen,
     # so the engine's specular light is split into the two.
     lamp_split: str = _setting(

@@ -18,7 +18,10 @@ HIZ_VISITS = {"skip": 1, "descend": 2, "behind": 3, "hit": 4}
 # the fallback hierarchy resolved it, or, where none did and the probes/world stand in, why the
 # screen could not: its ray left the frame, passed behind what the frame shows, or escaped
 # (reached its length or the sky in view).
-RAY_OUTCOMES = {"none": 0, "screen": 1, "guard_band": 2, "planar": 3, "left_frame": 4, "behind": 5, "escaped": 6}
+RAY_OUTCOMES = {"none": 0, "screen": 1, "guard_band": 2, "planar": 3, "cube": 4, "left_frame": 5, "behind": 6,
+                "escaped": 7}
+# params.capture_levels: a bit for each capture level that ran this frame.
+CAPTURE_LEVELS = {"planar": 1, "cube": 2}
 # LampData.shape: the emitter of each Lamp.shape (lamp_split.glsl).
 LAMP_SHAPES = {"sphere": 0, "facing_disk": 1, "sun": 2, "rect": 3, "ellipse": 4}
 
@@ -64,13 +67,19 @@ PARAMS_FIELDS = (
     ("float", "history_frames", "most frames a moving pixel averages"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
-    ("int", "use_capture", "a planar capture's hits stand in for the screen's (resolve reads capture_hit_tx)"),
+    ("int", "capture_levels", "CAPTURE_LEVEL_* bits of the captures that ran (resolve reads capture_hit_tx)"),
     ("mat4", "capture_world_to_view", "the planar capture's camera: the frame's mirrored in its plane"),
     ("mat4", "capture_view_to_clip", "its projection"),
     ("vec4", "capture_plane", "the reflector's plane in world space, n.x + d, n towards what it reflects"),
     ("vec2", "capture_size", "the capture's pixels"),
     ("int", "capture_color_levels", "levels in its colour pyramid"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "capture_color_level", "its colour pyramid atlas"),
+    ("mat4[6]", "cube_world_to_face", "the depth cube map's faces: world to each face camera's view"),
+    ("vec4", "cube_centre", "where it was captured (xyz); w: texels along a face's side"),
+    ("int", "cube_color_levels", "levels in its colour pyramid (the six faces in a 3 x 2 atlas)"),
+    ("int", "cube_steps", "march steps through it per ray"),
+    ("float", "cube_reach", "farthest a surface it shows lies from its centre"),
+    (f"vec4[{MAX_PYRAMID_LEVELS}]", "cube_color_level", "its colour pyramid atlas"),
 )
 
 # Lights of lamp_split=analytic (lamp_split.py, lamp_split.glsl); it refuses a scene with more.
@@ -158,8 +167,8 @@ class Std140Struct:
                 for index, element in enumerate(value):
                     start = offset + index * struct.words
                     words[start:start + struct.words] = struct.pack(element)
-            elif base == "mat4":
-                as_float[offset:offset + size] = np.asarray(value, np.float64).T.ravel()
+            elif base == "mat4":  # column-major, each matrix of an array in turn
+                as_float[offset:offset + size] = np.swapaxes(np.asarray(value, np.float64), -1, -2).ravel()
             elif base == "int":
                 as_int[offset] = int(value)
             elif base == "uint":
@@ -183,7 +192,8 @@ def shader_enums(prefix, codes):
 def glsl_struct():
     """The SSRParams struct and the enumerations its fields take, for GPUShaderCreateInfo.typedef_source."""
     return (f"#define MAX_PYRAMID_LEVELS {MAX_PYRAMID_LEVELS}\n" + shader_enums("RAY_SAMPLING", RAY_SAMPLING_CODES)
-            + shader_enums("HISTORY_MODE", HISTORY_MODES) + shader_enums("HIZ_VISIT", HIZ_VISITS) + shader_enums("RAY_OUTCOME", RAY_OUTCOMES) + PARAMS.glsl())
+            + shader_enums("HISTORY_MODE", HISTORY_MODES) + shader_enums("HIZ_VISIT", HIZ_VISITS) + shader_enums("RAY_OUTCOME", RAY_OUTCOMES) + shader_enums("CAPTURE_LEVEL", CAPTURE_LEVELS)
+            + PARAMS.glsl())
 
 
 def lamp_block_glsl():

@@ -7,7 +7,7 @@
  * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
  *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_record_tx
  *          (iterations the temporal history holds, history_lib.glsl), capture_hit_tx
- *          (what a planar capture found for each ray, read where params.use_capture).
+ *          (what the captures found for each ray, read where params.capture_levels has any).
  * Outputs: resolved_img     = (reflected radiance * confidence, confidence),
  *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
  *
@@ -91,7 +91,7 @@ void main()
     vec3 direction = ray.xyz;
     float hit_distance = 0.0;
     /* A capture's hit stands in for the screen's share it takes (planar_trace.glsl). */
-    vec4 captured = params.use_capture != 0 ? texelFetch(capture_hit_tx, texel, 0) : vec4(0.0);
+    vec4 captured = params.capture_levels != 0 ? texelFetch(capture_hit_tx, texel, 0) : vec4(0.0);
     float screen_share = min(hit.w, 1.0 - captured.a);
     if (screen_share > 0.0) {
       float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport_size), 0).r;
