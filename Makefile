@@ -8,7 +8,8 @@ OUT ?= out/demo
 PAGE := docs/measurements.md
 BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/bl_pkg/cli/blender_ext.py
 
-.PHONY: demo test test-fast bench bench-stages bench-error crops bench-chain bench-memory bench-lamps bench-live slides \
+.PHONY: demo test test-fast bench bench-stages bench-error crops bench-chain bench-memory bench-lamps bench-live \
+	bench-captures slides \
 	dist validate clean
 
 $(STAMP): pyproject.toml
@@ -54,6 +55,10 @@ bench-error: $(STAMP)
 # Balanced stills at 1280x720 beside EEVEE's ray tracing, cropped (docs/crops/).
 crops: $(STAMP)
 	$(PY) -m lab crops --scenes mirror_floor wet_street --page $(PAGE)
+
+# What the fallback hierarchy's captures cost, drawn through the 3D View or rendered.
+bench-captures: $(STAMP)
+	$(PY) -m lab captures --page $(PAGE)
 
 bench-chain: $(STAMP)
 	$(PY) -m lab chain-stages --page $(PAGE)

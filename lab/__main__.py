@@ -9,6 +9,7 @@
     lamps          the lamp splits' cost and error
     live           live SSR's latency from a view change
     crops          balanced stills at 1280x720 beside EEVEE's ray tracing
+    captures       what the fallback hierarchy's captures cost, drawn or rendered
 """
 import importlib
 import sys
@@ -18,7 +19,7 @@ from ssr_addon.core.errors import SSRError
 
 COMMANDS = {"demo": "lab.demo", "bench": "lab.bench.run", "error-budget": "lab.error_budget", "slides": "lab.slides",
             "chain-stages": "lab.chain_stages", "memory": "lab.batch_memory", "lamps": "lab.lamp_split",
-            "live": "lab.live_latency", "crops": "lab.still_crops"}
+            "live": "lab.live_latency", "crops": "lab.still_crops", "captures": "lab.capture_cost"}
 
 
 def run(argv):

@@ -169,11 +169,15 @@ def test_property_group_has_every_schema_field_with_its_default(addon):
     kinds = {bool: "BOOLEAN", int: "INT", float: "FLOAT", str: "ENUM"}
     for spec in SETTINGS_SCHEMA:
         prop = properties[spec.name]
-        assert prop.type == kinds[type(spec.default)], spec.name
+        kind = kinds[type(spec.default)] if spec.metadata["items"] or type(spec.default) is not str else "STRING"
+        assert prop.type == kind, spec.name
         assert prop.description == spec.metadata["description"]
         if prop.type == "ENUM":
             assert prop.default == spec.default
             assert [item[0] for item in spec.metadata["items"]] == prop.enum_items.keys()
+            continue
+        if prop.type == "STRING":  # text the schema checks (the fallback levels)
+            assert prop.default == spec.default
             continue
         assert prop.default == pytest.approx(spec.default, rel=1e-6), spec.name
         if spec.metadata["min"] is not None:
@@ -190,6 +194,8 @@ def _float32(chain):
 def _other_value(spec):
     if type(spec.default) is bool:
         return not spec.default
+    if type(spec.default) is str and not spec.metadata["items"]:
+        return "off"  # the one free-text setting, fallback: any value other than its default "auto"
     if type(spec.default) is str:
         return next(item[0] for item in spec.metadata["items"] if item[0] != spec.default)
     low, high = spec.metadata["min"], spec.metadata["max"]

@@ -69,10 +69,10 @@ def test_a_failing_frame_is_reported_and_skipped(dolly, tmp_path, monkeypatch):
     from ssr_addon.core.errors import SSRError
     real_render_frame = run.render_frame
 
-    def failing_on_frame_2(scene, request, state=None):
+    def failing_on_frame_2(scene, request, state=None, **options):
         if scene.frame_current == 2:
             raise SSRError("frame 2: the result has NaN or Inf pixels; nothing written")
-        return real_render_frame(scene, request, state)
+        return real_render_frame(scene, request, state, **options)
     monkeypatch.setattr(run, "render_frame", failing_on_frame_2)
     scene = load_scene(str(dolly))
     request = RenderRequest(out_dir=str(tmp_path), method="none", frames=(1, 3), on_error="skip")

@@ -38,8 +38,9 @@ def reflective_relative_error(image, reference, passes):
 
 
 def test_the_preview_of_the_camera_view_is_the_render_of_the_frame(tmp_path):
+    # The live view traces the screen alone: the render it matches has no fallback levels.
     run_cli("render", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "render", "--method", "ssr",
-            "--resolution", RESOLUTION)
+            "--resolution", RESOLUTION, "--set", "fallback=off")
     result = run_cli("preview", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "preview",
                      "--resolution", RESOLUTION)
     assert "first image" in result.stdout

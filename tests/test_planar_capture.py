@@ -2,7 +2,7 @@
 
 The expected image is geometry: each floor pixel's mirror ray is intersected with the boxes
 in numpy, and the face it hits gives the colour. The capture itself is ray cast the same way
-from the camera mirrored in the floor (what blender.planar_capture renders), so the test
+from the camera mirrored in the floor (what blender.scene_captures draws), so the test
 checks the chain's tracing through it, not a render.
 """
 import os

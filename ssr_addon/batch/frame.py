@@ -10,7 +10,7 @@ import numpy as np
 
 from ..blender.colour_management import write_display_png
 from ..blender.gpu_context import ensure_backend
-from ..blender.planar_capture import PlanarCaptures
+from ..blender.scene_captures import SceneCaptures
 from ..blender.render_passes import render_passes
 from ..blender.render_setup import decide_render
 from ..blender.viewport_capture import headless_viewport
@@ -37,22 +37,33 @@ class FrameImages:
 
 
 class FrameFallbacks:
-    """The fallback hierarchy's state over a run of frames (a still is a run of one): the planar
-    captures (blender.planar_capture.PlanarCaptures, drawn through the file's 3D View where it
-    has one) and, under fallback=auto, whether the run has a guard band. The run's first frame
-    decides that from what its rays left unresolved (AUTO_GUARD_BAND_SHARE)."""
+    """The fallback hierarchy's state over a run of frames (a still is a run of one): the scene
+    captures (blender.scene_captures.SceneCaptures, drawn through the file's 3D View where it
+    has one) and, under fallback=auto, whether the run has a guard band and a depth cube map.
+    The run's first frame decides those from what its rays left unresolved, and is rendered
+    again with them where it needs either."""
 
     def __init__(self):
-        self.captures = PlanarCaptures(headless_viewport())
-        self.guard_band = None  # undecided until the first frame under auto
+        self.captures = SceneCaptures(headless_viewport())
+        self.guard_band = self.cube = None  # undecided until the first frame under auto
+
+    def decide(self, unresolved):
+        """Decide the levels from the first frame's unresolved shares (core.ray_outcomes);
+        True where the frame needs rendering again."""
+        self.guard_band = unresolved["left_frame"] >= AUTO_GUARD_BAND_SHARE
+        self.cube = unresolved["left_frame"] + unresolved["behind"] >= AUTO_CUBE_SHARE
+        return self.guard_band or self.cube
 
     def release(self):
         self.captures.release()
 
 
 # Under fallback=auto a run gets a guard band when at least this share of its first frame's
-# reflected light was left to the probes and world by rays that left the frame.
+# reflected light was left to the probes and world by rays that left the frame, and a depth
+# cube map when at least AUTO_CUBE_SHARE was, by rays that left the frame or passed behind
+# what it shows (after the planar capture, where the frame has one).
 AUTO_GUARD_BAND_SHARE = 0.02
+AUTO_CUBE_SHARE = 0.05
 
 
 def render_frame(scene, request, state=None, fallbacks=None):
@@ -62,14 +73,14 @@ def render_frame(scene, request, state=None, fallbacks=None):
     caller has begun the frame in it (state.begin_frame). Without one the frame
     is a still, accumulated over `accumulate_iterations` iterations. FALLBACKS
     (FrameFallbacks) holds the run's fallback state from frame to frame; without it
-    the frame is a run of its own. Where fallback=auto finds that the frame needs a
-    guard band, the frame is rendered again with one.
+    the frame is a run of its own. Where fallback=auto finds that the first frame needs
+    a guard band or a cube map (FrameFallbacks), it is rendered again with them.
     """
     own_fallbacks = fallbacks is None
     fallbacks = fallbacks or FrameFallbacks()
     try:
         images, timer = _render_frame(scene, request, state, fallbacks)
-        if images.stats.get("needs_guard_band"):
+        if images.stats.pop("render_again", False):
             if state is not None:
                 state.reset_history()
                 state.begin_frame(scene.frame_current, scene.camera.name)
@@ -82,16 +93,18 @@ def render_frame(scene, request, state=None, fallbacks=None):
 
 def _render_frame(scene, request, state, fallbacks, earlier=None):
     timer = StageTimer(wait_for_gpu=request.time_stages)
-    if earlier is not None:  # the render this one replaces counts as the guard band's cost
-        timer.milliseconds["guard_band"] = sum(earlier.milliseconds.values())
+    if earlier is not None:  # the render this one replaces is what deciding the levels cost
+        timer.milliseconds["fallback_choice"] = sum(earlier.milliseconds.values())
     settings = request.settings
     use_ssr = request.method == "ssr" and settings.use_ssr
     levels = fallback_levels(settings.fallback) if use_ssr else ()
     guard_band = "guard_band" in levels if levels is not None else bool(fallbacks.guard_band)
+    cube = "cube" in levels if levels is not None else bool(fallbacks.cube)
     setup = decide_render(scene, request.engine, request.samples, request.resolution,
                           RENDER_RAYTRACING.get(request.method), lamp_split=settings.lamp_split if use_ssr else "off",
                           fallback=settings.fallback if use_ssr else "off", max_roughness=settings.max_roughness,
-                          guard_band=settings.guard_band_size if guard_band else 0.0)
+                          guard_band=settings.guard_band_size if guard_band else 0.0,
+                          cube_size=settings.cube_size if cube else 0)
     if setup.lamp_split.method == "analytic":
         timer.lap("lamp_split")  # reading the scene's lights; the chain adds its pass
     passes = render_passes(scene, setup, timer, fallbacks.captures)
@@ -108,10 +121,8 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
     layers = {name: crop_image(image, crop) for name, image in read_layers(passes, outputs).items()}
     passes = passes.cropped()
     stats = chain_stats(outputs, passes, layers, settings)
-    if levels is None and fallbacks.guard_band is None:
-        fallbacks.guard_band = stats["unresolved"]["left_frame"] >= AUTO_GUARD_BAND_SHARE
-        if fallbacks.guard_band:
-            stats["needs_guard_band"] = True
+    if levels is None and fallbacks.guard_band is None and fallbacks.decide(stats["unresolved"]):
+        stats["render_again"] = True
     images = FrameImages(passes, crop_image(download(outputs["final"]), crop), layers, stats)
     timer.lap("readback")
     return images, timer

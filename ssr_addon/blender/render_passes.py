@@ -16,7 +16,7 @@ from .exr_render import pass_layer, render_to_exr
 from .lamp_renders import emitter_specular, lamp_specular, offscreen_lamps
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
-from .planar_capture import PlanarCaptures
+from .scene_captures import SceneCaptures
 from .render_setup import apply_render_setup, rendered_view_layer
 from .scene_io import camera_matrices
 
@@ -28,8 +28,9 @@ def render_passes(scene, setup, timer=None, captures=None):
     highlights are split off as setup.lamp_split says (eevee_lamp_light). TIMER (a StageTimer)
     gets the engine's render as "render" and the split, the add-on's own cost, as "lamp_split":
     a second render (the analytic split is a pass of the chain). Where setup.planar_capture asks,
-    the passes carry the planar capture of the main reflector, timed as "planar": from CAPTURES
-    (planar_capture.PlanarCaptures, which may hold it from the frame before)."""
+    the passes carry the planar capture of the main reflector, timed as "planar", and where
+    setup.cube_size asks, the depth cube map, timed as "cube": from CAPTURES
+    (scene_captures.SceneCaptures, which may hold them from the frame before)."""
     camera = scene.camera
     view_layer = rendered_view_layer(scene)
     with tempfile.TemporaryDirectory(prefix="ssr_passes_") as folder, TemporaryChanges() as changes:
@@ -57,12 +58,15 @@ def render_passes(scene, setup, timer=None, captures=None):
                                     (camera.data.clip_start, camera.data.clip_end), setup.engine, setup.samples,
                                     material_warnings, lamps)
         passes.crop = setup.crop
-        if captures is None and setup.planar_capture != "off":
-            captures = PlanarCaptures()  # for this frame alone, rendered
-        passes.capture = captures.capture(scene, view_layer, setup, passes, folder, changes) \
-            if captures is not None else None
-        if passes.capture is not None:
-            lap(timer, "planar")
+        if captures is None and (setup.planar_capture != "off" or setup.cube_size):
+            captures = SceneCaptures()  # for this frame alone, rendered
+        if captures is not None:
+            passes.capture = captures.planar(scene, view_layer, setup, passes, folder, changes)
+            if passes.capture is not None:
+                lap(timer, "planar")
+            passes.cube = captures.cube(scene, view_layer, setup, folder, changes)
+            if passes.cube is not None:
+                lap(timer, "cube")
     return passes
 
 

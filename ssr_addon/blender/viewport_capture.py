@@ -91,20 +91,26 @@ class ViewportCapture:
 
     def draw_passes(self, scene, view_layer, view_matrix, projection_matrix, size, passes):
         """{name: (H, W, channels)} of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX at SIZE:
-        PASSES maps each name to (viewport render_pass, channels, TAA samples), drawn in Rendered
-        shading (the scene's world and lights)."""
+        PASSES maps each name to (viewport render_pass, channels, TAA samples). The view is drawn
+        as it is shaded (hold_for_captures: Rendered, the scene's world and lights)."""
         with TemporaryChanges() as changes:
-            changes.set(self.space.shading, "type", "RENDERED")
             self._prepare(scene, size, changes)
             changes.set(scene.eevee, "taa_samples", scene.eevee.taa_samples)
             view_layer.update()
             view, projection = _matrix(view_matrix), _matrix(projection_matrix)
             layers = {}
             for name, (render_pass, channels, samples) in passes.items():
-                scene.eevee.taa_samples = samples  # 0 would mean unlimited
+                if scene.eevee.taa_samples != samples:
+                    scene.eevee.taa_samples = samples  # 0 would mean unlimited
                 layers[name] = self._draw(scene, view_layer, view, projection, render_pass, channels)
-        view_layer.update()
         return layers
+
+    def hold_for_captures(self, changes):
+        """Through CHANGES, shade the view as a render is (Rendered: the scene's world and lights)
+        and without overlays for as long as CHANGES holds: switching the shading each capture
+        would start EEVEE's viewport engine afresh each time."""
+        changes.set(self.space.shading, "type", "RENDERED")
+        changes.set(self.space.overlay, "show_overlays", False)
 
     def combined(self, scene, view_layer, view_matrix, projection_matrix, size):
         """EEVEE's image of the view alone, (H, W, 4)."""
@@ -122,7 +128,8 @@ class ViewportCapture:
         if problem is not None:
             raise SSRError(problem)
         self._ensure_offscreen(size)
-        changes.set(self.space.overlay, "show_overlays", False)
+        if self.space.overlay.show_overlays:
+            changes.set(self.space.overlay, "show_overlays", False)
         changes.set(self.space.shading, "render_pass", self.space.shading.render_pass)  # _draw switches it
 
     def _ensure_offscreen(self, size):
@@ -135,7 +142,8 @@ class ViewportCapture:
 
     def _draw(self, scene, view_layer, view, projection, render_pass, channels):
         """One pass of the view as an (H, W, CHANNELS) array in image order."""
-        self.space.shading.render_pass = render_pass
+        if self.space.shading.render_pass != render_pass:
+            self.space.shading.render_pass = render_pass
         try:
             self._offscreen.draw_view3d(scene, view_layer, self.space, self.region, view, projection,
                                         do_color_management=False)

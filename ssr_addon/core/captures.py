@@ -13,7 +13,7 @@ from .inputs import BACKGROUND_DEPTH
 class PlanarCapture:
     """The scene as a large flat reflector (a floor, a mirror, water) shows it: rendered from
     the frame's camera mirrored in the reflector's plane, the reflector hidden
-    (blender.planar_capture). Arrays in image order, as RenderPasses'."""
+    (blender.scene_captures). Arrays in image order, as RenderPasses'."""
     radiance: np.ndarray         # (H, W, 4) the lit scene, scene linear
     depth: np.ndarray            # (H, W) distance along the capture camera's view axis; BACKGROUND_DEPTH: world
     normal: np.ndarray           # (H, W, 3) world-space shading normal
@@ -78,7 +78,7 @@ def cube_atlas(faces):
 @dataclass
 class CubeCapture:
     """Radiance and distance in six 90-degree faces from CENTRE, a point in free space among
-    the reflectors (blender.cube_capture), packed by cube_atlas."""
+    the reflectors (blender.scene_captures), packed by cube_atlas."""
     radiance: np.ndarray         # (2N, 3N, 4) the lit scene
     depth: np.ndarray            # (2N, 3N) distance along each face camera's view axis; BACKGROUND_DEPTH: world
     centre: tuple                # (x, y, z) world

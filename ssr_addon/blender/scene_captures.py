@@ -1,6 +1,8 @@
-"""The planar capture of a frame's main flat reflector (core.captures.PlanarCapture): the
-scene seen from the frame's camera mirrored in the reflector's plane, the reflector and
-whatever lies wholly behind its plane hidden.
+"""The scene captures the fallback hierarchy traces in (core.captures), drawn or rendered.
+
+The planar capture of a frame's main flat reflector (PlanarCapture): the scene seen from the
+frame's camera mirrored in the reflector's plane, the reflector and whatever lies wholly
+behind its plane hidden.
 
 A mirror is not a rotation, so the capture camera is the mirrored camera with its x axis
 flipped back (and its lens shift with it): a camera like any other, whose matrices the chain
@@ -12,6 +14,9 @@ Combined at the frame's samples, the data passes at one. At 320x180 that is 0.5 
 a render's 7-10 s, and as close to a 64-sample render as a 16-sample render is
 (lab/capture_cost.py, docs/measurements.md). Where there is no 3D View, or the frame is a
 Cycles render, the capture is a render of its own.
+
+The depth cube map (CubeCapture): six 90-degree faces from where the cubemap baseline puts its
+probe, each face's radiance and axis distance.
 """
 import os
 
@@ -19,11 +24,12 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from ..core.captures import PlanarCapture, mirror_matrix
+from ..core.captures import CubeCapture, PlanarCapture, cube_atlas, cube_face_projection, cube_face_views, mirror_matrix
 from ..core.errors import SSRError
 from ..core.inputs import BACKGROUND_DEPTH
-from .baselines import largest_flat_mesh, rendered_geometry
+from .baselines import default_probe_placement, largest_flat_mesh, rendered_geometry
 from .exr_render import pass_layer, render_to_exr
+from .overrides import TemporaryChanges
 from .scene_io import camera_matrices, view_depth
 
 # Under fallback=auto the frame gets a capture when the reflector holds at least this share of
@@ -141,17 +147,93 @@ def render_planar_capture(scene, size, reflector, plane, folder, changes):
                     pass_layer(layers, "Normal"), pass_layer(layers, "Depth")[..., 0])
 
 
-class PlanarCaptures:
-    """The planar captures of a run of frames: drawn through one 3D View where the file has one
-    (VIEWPORT: a viewport_capture.ViewportCapture, or None to render them), and reused while
-    nothing they show changed (capture_key): a still camera over a static set is captured once
-    a shot."""
+def cube_centre(scene):
+    """Where the depth cube map is captured: where the cubemap baseline puts its probe, in free
+    space over the middle of the scene (baselines.default_probe_placement)."""
+    return tuple(float(value) for value in default_probe_placement(scene).location)
+
+
+def _cube_clip(scene, centre):
+    """(clip_start, clip_end) of the cube's faces: everything the scene holds, from close by."""
+    low, high = _scene_bounds(scene)
+    size = (high - low).length
+    reach = max((Vector(corner) - Vector(centre)).length for corner in
+                [(x, y, z) for x in (low.x, high.x) for y in (low.y, high.y) for z in (low.z, high.z)])
+    return size * 1e-3 + 1e-3, reach * 2.0 + 1.0
+
+
+def _scene_bounds(scene):
+    corners = [obj.matrix_world @ Vector(corner) for obj in rendered_geometry(scene) for corner in obj.bound_box]
+    if not corners:
+        raise SSRError(f"fallback=cube: scene '{scene.name}' has no visible geometry to capture")
+    return Vector(map(min, zip(*corners))), Vector(map(max, zip(*corners)))
+
+
+def draw_cube_capture(scene, view_layer, viewport, side, samples):
+    """The CubeCapture of SCENE drawn through VIEWPORT: each face's Combined at SAMPLES, its
+    normals (for where the world shows) and positions at one."""
+    centre = cube_centre(scene)
+    views = cube_face_views(centre)
+    projection = cube_face_projection(*_cube_clip(scene, centre))
+    radiance, depth = [], []
+    for view in views:
+        layers = viewport.draw_passes(scene, view_layer, view, projection, (side, side), {
+            "Combined": ("COMBINED", 4, samples), "Normal": ("NORMAL", 3, 1), "Position": ("POSITION", 3, 1)})
+        face_depth = view_depth(layers["Position"], view)[..., 0]
+        face_depth[np.linalg.norm(layers["Normal"], axis=-1) < 0.5] = BACKGROUND_DEPTH
+        radiance.append(layers["Combined"])
+        depth.append(face_depth)
+    return CubeCapture(cube_atlas(radiance), cube_atlas(depth), centre, views)
+
+
+def render_cube_capture(scene, side, folder, changes):
+    """The CubeCapture of SCENE as six renders (set up for its frame's passes) from a 90-degree
+    camera at the cube's centre, into FOLDER. Every change goes through CHANGES."""
+    centre = cube_centre(scene)
+    views = cube_face_views(centre)
+    data = bpy.data.cameras.new("SSR Cube Capture")
+    data.angle, data.sensor_fit = np.pi / 2, "HORIZONTAL"
+    data.clip_start, data.clip_end = _cube_clip(scene, centre)
+    camera = bpy.data.objects.new("SSR Cube Capture", data)
+    scene.collection.objects.link(camera)
+    changes.on_restore(lambda: (bpy.data.objects.remove(camera), bpy.data.cameras.remove(data)))
+    changes.set(scene, "camera", camera)
+    changes.set_all(scene.render, resolution_x=side, resolution_y=side)
+    radiance, depth = [], []
+    for index, view in enumerate(views):
+        camera.matrix_world = Matrix(np.linalg.inv(view).tolist())
+        layers = render_to_exr(scene, os.path.join(folder, f"cube_face{index}.exr"), changes)
+        face_depth = pass_layer(layers, "Depth")[..., 0].copy()
+        face_depth[np.linalg.norm(pass_layer(layers, "Normal"), axis=-1) < 0.5] = BACKGROUND_DEPTH
+        radiance.append(pass_layer(layers, "Combined"))
+        depth.append(face_depth)
+    return CubeCapture(cube_atlas(radiance), cube_atlas(depth), centre, views)
+
+
+class SceneCaptures:
+    """The captures of a run of frames (the planar capture, the depth cube map): drawn through
+    one 3D View where the file has one (VIEWPORT: a viewport_capture.ViewportCapture, or None
+    to render them), and reused while nothing they show changed (capture_key): a still camera
+    over a static set is captured once a shot, and the cube, which does not follow the camera,
+    while the set holds still."""
 
     def __init__(self, viewport=None):
         self.viewport = viewport
-        self._key = self._capture = None
+        self._kept = {}  # level: (key, capture)
+        self._held = TemporaryChanges()
+        if viewport is not None:
+            viewport.hold_for_captures(self._held)
 
-    def capture(self, scene, view_layer, setup, passes, folder, changes):
+    def _reuse(self, level, key, make):
+        kept = self._kept.get(level)
+        if kept is None or kept[0] != key:
+            kept = self._kept[level] = (key, make())
+        return kept[1]
+
+    def _draws(self, setup):
+        return self.viewport is not None and setup.engine == "eevee"
+
+    def planar(self, scene, view_layer, setup, passes, folder, changes):
         """The PlanarCapture SETUP asks for of the frame's PASSES, or None: with planar_capture
         auto, only where the main reflector holds AUTO_MIN_REFLECTOR_SHARE of the frame's
         reflected light; on, wherever the scene has a flat mesh. SCENE is set up for the frame's
@@ -166,33 +248,42 @@ class PlanarCaptures:
         if setup.planar_capture == "auto" and \
                 reflector_share(passes, found[1], setup.max_roughness) < AUTO_MIN_REFLECTOR_SHARE:
             return None
-        key = (capture_key(scene), setup.rendered_size, setup.samples, setup.engine, found[1])
-        if key != self._key:
-            self._capture = draw_planar_capture(scene, view_layer, self.viewport, setup.rendered_size, setup.samples, *found,
-                                                changes) \
-                if self.viewport is not None and setup.engine == "eevee" else \
-                render_planar_capture(scene, setup.rendered_size, *found, folder, changes)
-            self._key = key
-        return self._capture
+        size = setup.rendered_size
+        key = (capture_key(scene, with_camera=True), size, setup.samples, setup.engine, found[1])
+        if self._draws(setup):
+            return self._reuse("planar", key, lambda: draw_planar_capture(
+                scene, view_layer, self.viewport, size, setup.samples, *found, changes))
+        return self._reuse("planar", key, lambda: render_planar_capture(scene, size, *found, folder, changes))
+
+    def cube(self, scene, view_layer, setup, folder, changes):
+        """The CubeCapture SETUP asks for (setup.cube_size: the pixels of a face's side; 0: none)."""
+        if not setup.cube_size:
+            return None
+        key = (capture_key(scene, with_camera=False), setup.cube_size, setup.samples, setup.engine)
+        if self._draws(setup):
+            return self._reuse("cube", key, lambda: draw_cube_capture(scene, view_layer, self.viewport,
+                                                                      setup.cube_size, setup.samples))
+        return self._reuse("cube", key, lambda: render_cube_capture(scene, setup.cube_size, folder, changes))
 
     def release(self):
+        self._held.restore()
         if self.viewport is not None:
             self.viewport.release()
-        self._key = self._capture = None
+        self._kept.clear()
 
 
-def capture_key(scene):
-    """What a capture of SCENE shows, as a value that changes when any of it does: the camera,
-    every object's transform and visibility, and the frame where anything else is animated
-    (a material, a light, the world)."""
+def capture_key(scene, with_camera):
+    """What a capture of SCENE shows, as a value that changes when any of it does: every
+    object's transform and visibility, the frame where anything else is animated (a material,
+    a light, the world), and WITH_CAMERA the camera's lens (its transform is an object's)."""
     objects = tuple((obj.name, tuple(map(tuple, obj.matrix_world)), obj.hide_render)
-                    for obj in scene.objects)
-    camera = scene.camera.data
+                    for obj in scene.objects if with_camera or obj != scene.camera)
     animated = any(getattr(block, "animation_data", None) is not None and block.animation_data.action is not None
                    for collection in (bpy.data.materials, bpy.data.lights, bpy.data.worlds, bpy.data.node_groups)
                    for block in collection) or any(
                        getattr(block, "node_tree", None) is not None and block.node_tree.animation_data is not None
                        for collection in (bpy.data.materials, bpy.data.worlds) for block in collection)
-    return (objects, camera.lens, camera.shift_x, camera.shift_y, camera.ortho_scale, camera.type,
-            scene.frame_current if animated else None)
-
+    camera = scene.camera.data
+    lens = (camera.lens, camera.shift_x, camera.shift_y, camera.ortho_scale, camera.type, camera.sensor_width,
+            camera.sensor_height, camera.sensor_fit) if with_camera else None
+    return objects, lens, scene.frame_current if animated else None

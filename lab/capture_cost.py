@@ -1,0 +1,126 @@
+"""What the fallback hierarchy's captures cost, drawn through a 3D View or rendered, and how close
+a drawn capture is to a rendered one.
+
+    python -m lab captures [--scenes NAME ...] [--resolution WxH] [--page docs/measurements.md]
+
+For each scene: the frame's own render (the second of two: the first compiles), the planar
+capture and the depth cube map rendered (scene_captures.render_*_capture, a fresh EEVEE
+instance each) and drawn through the 3D View (GPUOffScreen.draw_view3d: the first draw, which
+compiles the viewport's shaders, and the next after the camera moved). Drawn and rendered
+planar captures are compared with a 64-sample render of the capture: the relative mean
+absolute difference of their radiance, beside that of a render at the frame's samples (EEVEE's
+own noise). A capture is cheap when its warm cost is a small multiple of the frame's render.
+"""
+import tempfile
+import time
+
+import numpy as np
+
+from ssr_addon.batch.cli import ArgumentParser
+from ssr_addon.batch.request import parse_resolution
+from ssr_addon.blender.gpu_context import ensure_backend
+from ssr_addon.blender.overrides import TemporaryChanges
+from ssr_addon.blender.render_passes import render_passes
+from ssr_addon.blender.render_setup import apply_render_setup, decide_render, rendered_view_layer
+from ssr_addon.blender.scene_captures import (draw_cube_capture, draw_planar_capture, find_reflector,
+                                              render_cube_capture, render_planar_capture)
+from ssr_addon.blender.scene_io import load_scene
+from ssr_addon.blender.viewport_capture import headless_viewport
+from ssr_addon.core.gpu_backend import describe_gpu
+from .bench.scenes import resolve_scene, scene_label
+from .docs import require_page, rewrite_block
+
+SCENES = ("hidden_underside", "steel_room", "mirror_floor")
+SAMPLES = 16
+REFERENCE_SAMPLES = 64
+CUBE_SIZE = 128
+
+
+def _timed(make):
+    started = time.perf_counter()
+    result = make()
+    return result, time.perf_counter() - started
+
+
+def _relative(a, b):
+    return float(np.abs(a[..., :3] - b[..., :3]).mean() / max(b[..., :3].mean(), 1e-6))
+
+
+def measure(name, resolution):
+    scene = load_scene(resolve_scene(name))
+    ensure_backend()
+    for _ in range(2):
+        _, render_s = _timed(lambda: render_passes(scene, decide_render(scene, samples=SAMPLES,
+                                                                        resolution=resolution)))
+    found = find_reflector(scene)
+    row = {"scene": scene_label(resolve_scene(name)), "render": render_s}
+    view_layer = rendered_view_layer(scene)
+
+    def rendered(kind, samples):
+        setup = decide_render(scene, samples=samples, resolution=resolution)
+        with tempfile.TemporaryDirectory() as folder, TemporaryChanges() as changes:
+            apply_render_setup(setup, scene, view_layer, changes)
+            if kind == "planar":
+                return render_planar_capture(scene, resolution, *found, folder, changes)
+            return render_cube_capture(scene, CUBE_SIZE, folder, changes)
+
+    def drawn(kind, viewport):
+        setup = decide_render(scene, samples=SAMPLES, resolution=resolution)
+        with TemporaryChanges() as changes:
+            apply_render_setup(setup, scene, view_layer, changes)
+            if kind == "planar":
+                return draw_planar_capture(scene, view_layer, viewport, resolution, SAMPLES, *found, changes)
+            return draw_cube_capture(scene, view_layer, viewport, CUBE_SIZE, SAMPLES)
+
+    viewport = headless_viewport()
+    held = TemporaryChanges()
+    viewport.hold_for_captures(held)
+    try:
+        for kind in ("planar", "cube"):
+            if kind == "planar" and found is None:
+                continue
+            row[f"{kind} render"] = _timed(lambda: rendered(kind, SAMPLES))[1]
+            first, row[f"{kind} draw first"] = _timed(lambda: drawn(kind, viewport))
+            camera = scene.camera
+            camera.location.x += 0.01  # a moved view: the viewport must draw afresh
+            warm, row[f"{kind} draw"] = _timed(lambda: drawn(kind, viewport))
+            camera.location.x -= 0.01
+            if kind == "planar":
+                reference = rendered(kind, REFERENCE_SAMPLES).radiance
+                row["planar error"] = (_relative(drawn(kind, viewport).radiance, reference),
+                                       _relative(rendered(kind, SAMPLES).radiance, reference))
+    finally:
+        held.restore()
+        viewport.release()
+    return row
+
+
+def main(argv):
+    parser = ArgumentParser(prog="python -m lab captures", description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES))
+    parser.add_argument("--resolution", type=parse_resolution, default=(320, 180))
+    parser.add_argument("--page", help="rewrite the capture-cost block of this markdown page")
+    arguments = parser.parse_args(argv)
+    require_page(arguments.page)
+    rows = [measure(name, arguments.resolution) for name in arguments.scenes]
+    width, height = arguments.resolution
+    lines = [f"Latest run: `python -m lab captures --resolution {width}x{height}"
+             f"{' --page docs/measurements.md' if arguments.page else ''}` on {describe_gpu()['renderer']}; "
+             f"EEVEE at {SAMPLES} samples, cube faces {CUBE_SIZE}x{CUBE_SIZE}. Seconds, and in brackets as a "
+             f"multiple of the frame's own render. Drawn: through the 3D View, first (compiling) and after "
+             f"the camera moved. Planar error: relative mean absolute difference from a {REFERENCE_SAMPLES}-sample "
+             f"render of the capture, drawn / rendered at {SAMPLES} samples (EEVEE's own noise).", "",
+             "| scene | frame render s | planar render | planar drawn, first | planar drawn | cube render "
+             "| cube drawn, first | cube drawn | planar error drawn / rendered |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    for row in rows:
+        def cell(key):
+            return f"{row[key]:.2f} ({row[key] / row['render']:.2f}x)" if key in row else "-"
+        error = row.get("planar error")
+        lines.append(f"| {row['scene']} | {row['render']:.2f} | " + " | ".join(cell(key) for key in (
+            "planar render", "planar draw first", "planar draw", "cube render", "cube draw first", "cube draw"))
+            + f" | {f'{error[0]:.2%} / {error[1]:.2%}' if error else '-'} |")
+    text = "\n".join(lines)
+    print(text)
+    if arguments.page:
+        rewrite_block(arguments.page, "capture-cost", text, "What the captures cost")
