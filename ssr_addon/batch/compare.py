@@ -8,6 +8,7 @@ import numpy as np
 from ..blender.baselines import COMPARISON_MODES, apply_baseline
 from ..blender.comparison_sheet import comparison_sheet
 from ..blender.overrides import TemporaryChanges
+from ..blender.render_setup import render_size
 from ..blender.scene_io import require_camera
 from ..core.errors import SSRError
 from .frame import render_frame
@@ -15,6 +16,7 @@ from .frame import render_frame
 # The render method of each comparison mode, rendered with the mode's baseline applied:
 # EEVEE uses plane probes only with its screen-trace ray tracing.
 MODE_METHODS = {"SSR": "ssr", "CUBEMAP": "none", "PLANAR": "eevee-rt", "NONE": "none"}
+WARM_UP_MIN = 16  # pixels: the smallest side of a warm-up render
 
 
 def render_mode(scene, mode, request, state=None, probe_object=None, mirror_object=None):
@@ -32,13 +34,19 @@ def render_mode(scene, mode, request, state=None, probe_object=None, mirror_obje
 def compare_modes(scene, request, probe_object=None, mirror_object=None):
     """The current frame in every comparison mode, side by side: (sheet rgba, label per mode, problems).
 
-    A mode the scene cannot show (no mirror plane...) gets a blank tile and a line in problems.
+    Each mode is timed after a warm-up render of its own at a quarter of the size: a mode's
+    first render compiles EEVEE's shaders for its set-up (a minute in a fresh cache), which
+    says nothing of what the mode costs. A mode the scene cannot show (no mirror plane...)
+    gets a blank tile and a line in problems.
     """
     require_camera(scene)
+    width, height = render_size(scene, request.resolution)
+    warm_up = replace(request, resolution=(max(WARM_UP_MIN, width // 4), max(WARM_UP_MIN, height // 4)))
     tiles, problems = [], []
     for mode, label, _ in COMPARISON_MODES:
-        started = time.perf_counter()
         try:
+            render_mode(scene, mode, warm_up, probe_object=probe_object, mirror_object=mirror_object)
+            started = time.perf_counter()
             images, _ = render_mode(scene, mode, request, probe_object=probe_object, mirror_object=mirror_object)
         except SSRError as error:
             problems.append(f"{label}: {error}")

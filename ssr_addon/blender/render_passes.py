@@ -28,8 +28,8 @@ def render_passes(scene, setup, timer=None, captures=None):
     highlights are split off as setup.lamp_split says (eevee_lamp_light). TIMER (a StageTimer)
     gets the engine's render as "render" and the split, the add-on's own cost, as "lamp_split":
     a second render (the analytic split is a pass of the chain). Where setup.planar_capture asks,
-    the passes carry the planar capture of the main reflector, timed as "planar", and where
-    setup.cube_size asks, the depth cube map, timed as "cube": from CAPTURES
+    the passes carry the planar capture of the main reflector, timed as "planar_capture", and
+    where setup.cube_size asks, the depth cube map, timed as "cube_capture": from CAPTURES
     (scene_captures.SceneCaptures, which may hold them from the frame before)."""
     camera = scene.camera
     view_layer = rendered_view_layer(scene)
@@ -63,10 +63,10 @@ def render_passes(scene, setup, timer=None, captures=None):
         if captures is not None:
             passes.capture = captures.planar(scene, view_layer, setup, passes, folder, changes)
             if passes.capture is not None:
-                lap(timer, "planar")
+                lap(timer, "planar_capture")
             passes.cube = captures.cube(scene, view_layer, setup, folder, changes)
             if passes.cube is not None:
-                lap(timer, "cube")
+                lap(timer, "cube_capture")
     return passes
 
 
