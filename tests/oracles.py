@@ -137,6 +137,10 @@ def distance_on_screen(uv, direction):
     return inside
 
 
+# trace.glsl's: a hit from behind on the ray's own surface this close to its plane is a graze.
+SELF_HIT_PX, SELF_HIT_RETRIES = 2.0, 2
+
+
 def trace_mirror_rays(depth, normal_view, roughness, view_to_clip, clip_start, clip_end, settings, march):
     """trace.glsl with mirror rays at full resolution: (H, W, 4) = (hit uv, distance, confidence).
 
@@ -163,13 +167,26 @@ def trace_mirror_rays(depth, normal_view, roughness, view_to_clip, clip_start, c
             if np.dot(direction, normal) <= 0:
                 continue
             ray = ScreenRay(origin, direction, view_to_clip, viewport, clip_start, settings.max_distance)
-            t = march(ray, scene_depth, settings, clip_end)
+            for attempt in range(SELF_HIT_RETRIES + 1):
+                t = march(ray, scene_depth, settings, clip_end)
+                if t < 0:
+                    break
+                hit_px = ray.position(t)
+                hit_texel = np.clip(np.floor(hit_px).astype(np.int32), 0, np.array([width, height]) - 1)
+                hit_normal = normal_view[::-1][hit_texel[1], hit_texel[0]]
+                hit_position = ray.view_position(t)
+                footprint = F32(2.0) / (view_to_clip[1, 1] * F32(height)) * -hit_position[2]
+                # A graze of the ray's own surface near its origin: it goes on past that point.
+                grazes = (np.dot(hit_normal, direction) > 0 and np.dot(hit_normal, normal) > 0.99
+                          and abs(np.dot(normal, hit_position - origin)) < SELF_HIT_PX * footprint)
+                if not grazes:
+                    break
+                ray = ScreenRay(hit_position + direction * footprint, direction, view_to_clip, viewport, clip_start,
+                                settings.max_distance)
             if t < 0:
                 continue
-            hit_px = ray.position(t)
             hit_uv = hit_px / viewport
-            hit_texel = np.clip(np.floor(hit_px).astype(np.int32), 0, np.array([width, height]) - 1)
-            if np.dot(normal_view[::-1][hit_texel[1], hit_texel[0]], direction) > 0:
+            if np.dot(hit_normal, direction) > 0:
                 continue
             on_screen_for = distance_on_screen(hit_uv, ray.delta / viewport)
             fade = np.clip(on_screen_for / settings.border_fade, 0, 1) if settings.border_fade > 0 else 1.0

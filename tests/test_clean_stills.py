@@ -87,3 +87,23 @@ def test_sharp_surfaces_always_get_expensive_rays(gpu_backend):
     traced = ray_class > 0
     assert (ray_class[traced & floor] == 2).all()
     assert (ray_class[traced & ~floor] == 1).all(), "the budget is spent on the sharp floor"
+
+
+def test_no_seam_where_the_floor_meets_the_wall(gpu_backend):
+    """The row of floor pixels touching the back wall mirrors the wall as the rows below it do.
+    Its rays hit the wall's bottom row, right at the contact, and a bilinear fetch there read
+    half of the floor's own (dark) colour: a dark line across the whole frame."""
+    projection, depth, normal, rays, floor, radiance, surface_roughness = mirror_scene(0.04)
+    settings = preset("balanced")
+    arrays, _ = run_synthetic_chain(depth, normal, surface_roughness, projection, settings, radiance=radiance,
+                                    ray_budget=ray_budget(surface_roughness, depth, CLIP_END, settings))
+    reflection = arrays["reflection"]
+    _, box_seen, _ = intersect_boxes(np.zeros_like(rays), rays, BOXES, depth.astype(np.float64) + 1e-3)
+    wall_above = np.zeros_like(floor)
+    wall_above[1:] = box_seen[:-1] == 0
+    contact = floor & wall_above  # floor pixels right under the back wall
+    assert contact.sum() > 100
+    shown = reflection[..., :3] / np.maximum(reflection[..., 3:], 1e-6)
+    error = np.abs(shown - COLOURS[0]).max(axis=-1)
+    wrong = (error > TOLERANCE) | (reflection[..., 3] < 0.9)
+    assert wrong[contact].mean() < 0.05, (wrong[contact].sum(), contact.sum(), np.round(shown[wrong & contact][:3], 3))

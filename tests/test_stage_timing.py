@@ -27,7 +27,7 @@ def test_bench_frames_alternate_between_stage_timing_and_whole_frames(monkeypatc
     times, each stage its fastest over its own frames."""
     requests = []
 
-    def fake_render_frame(scene, request, state):
+    def fake_render_frame(scene, request, state, fallbacks=None):
         requests.append(request.time_stages)
         apart = request.time_stages
         timer = types.SimpleNamespace(milliseconds={"render": 100.0 + len(requests), "trace": 5.0 if apart else 1.0,
@@ -36,7 +36,7 @@ def test_bench_frames_alternate_between_stage_timing_and_whole_frames(monkeypatc
 
     monkeypatch.setattr(bench_contenders, "render_frame", fake_render_frame)
     scene = types.SimpleNamespace(frame_current=1)
-    contender = types.SimpleNamespace(name="ssr balanced", method="ssr", settings=ChainSettings())
+    contender = bench_contenders.Contender("ssr balanced", "ssr", ChainSettings())
     options = types.SimpleNamespace(frames=6, out_dir="", resolution=(4, 4), eevee_samples=1)
     _, stages, whole = bench_contenders.run_contenders(scene, [contender], options)["ssr balanced"]
     assert requests == [False, True, False, True, False, True]

@@ -45,6 +45,10 @@ void main()
   vec3 fg = fg_term(texelFetch(f0_tx, texel, 0).rgb, n_dot_v, texelFetch(roughness_tx, texel, 0).r);
   vec3 specular_color = texelFetch(specular_color_tx, texel, 0).rgb;
   vec3 indirect = texelFetch(specular_indirect_tx, texel, 0).rgb;
-  vec3 replaced = fg * reflection.rgb - reflection.a * specular_color * indirect;
+  /* The engine filters each pass on its own, so where a pixel straddles an edge (the floor
+   * row touching a wall) the product of the filtered colour and light can exceed what the
+   * filtered image holds of it; no part of the image is more than all of it. */
+  vec3 probe_reflection = min(specular_color * indirect, max(combined.rgb, vec3(0.0)));
+  vec3 replaced = fg * reflection.rgb - reflection.a * probe_reflection;
   final_img = vec4(max(combined.rgb + replaced, vec3(0.0)), combined.a);
 }

@@ -33,8 +33,13 @@ vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float so
   }
   int lower = int(floor(level));
   int upper = min(lower + 1, params.capture_color_levels - 1);
-  return pyramid_sample(capture_color_tx, params.capture_color_level[lower], params.capture_color_level[upper],
-                        level, hit_uv);
+  if (lower > 0) {
+    return pyramid_sample(capture_color_tx, params.capture_color_level[lower], params.capture_color_level[upper],
+                          level, hit_uv);
+  }
+  vec3 sharp = surface_sample(capture_color_tx, params.capture_color_level[0], capture_normal_tx,
+                              hit_uv * params.capture_size, params.capture_size);
+  return mix(sharp, atlas_sample(capture_color_tx, params.capture_color_level[upper], hit_uv).rgb, level);
 }
 
 void main()

@@ -22,6 +22,9 @@
  * hits' colours are averaged tone-mapped, c / (1 + max(c)), and mapped back, so
  * one bright ray among dim ones cannot dominate a pixel. */
 
+/* Neighbours whose ray left a surface turned further than this from this pixel's are not reused. */
+#define SAME_SURFACE_COS 0.9
+
 vec3 tonemap(vec3 color)
 {
   return color / (1.0 + max(max(color.r, color.g), color.b));
@@ -46,7 +49,13 @@ vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
   }
   int lower = int(floor(level));
   int upper = min(lower + 1, params.color_levels - 1);
-  return pyramid_sample(color_tx, params.color_level[lower], params.color_level[upper], level, hit_uv);
+  if (lower > 0) {
+    return pyramid_sample(color_tx, params.color_level[lower], params.color_level[upper], level, hit_uv);
+  }
+  /* A sharp hit reads the surface it hit, not what lies beside it on screen. */
+  vec3 sharp = surface_sample(color_tx, params.color_level[0], normal_tx, hit_uv * params.viewport_size,
+                              params.viewport_size);
+  return mix(sharp, atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb, level);
 }
 
 void main()
@@ -86,6 +95,12 @@ void main()
     vec4 hit = texelFetch(ray_hit_tx, texel, 0);
     if (!(hit.z > 0.0)) {
       continue; /* no ray was traced there (sky, rough or back-facing pixel) */
+    }
+    /* A ray stands for this pixel's lobe only if it left the same surface: one from the wall
+     * beside a floor pixel saw what the wall reflects (the floor, darkening the contact). */
+    vec3 origin_normal = texelFetch(normal_tx, ray_origin_pixel(texel), 0).xyz;
+    if (k > 0 && dot(view_normal(origin_normal), normal) < SAME_SURFACE_COS) {
+      continue;
     }
     vec4 ray = texelFetch(ray_dir_tx, texel, 0);
     vec3 direction = ray.xyz;

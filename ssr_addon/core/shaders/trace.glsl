@@ -16,6 +16,11 @@
  * get expensive Hi-Z rays, the rest cheap linear rays; ties at the threshold
  * toss a coin of their own, drawn afresh every iteration. */
 
+/* A hit from behind on the ray's own surface, this many pixel footprints from its plane, is a
+ * graze near the origin; the ray goes on past it at most SELF_HIT_RETRIES times. */
+#define SELF_HIT_PX 2.0
+#define SELF_HIT_RETRIES 2
+
 float halton(uint index, uint base)
 {
   float result = 0.0, fraction = 1.0;
@@ -112,16 +117,38 @@ void main()
   bool expensive = params.hiz_levels > 0 && is_expensive(roughness, pixel);
   ray_stats_img.x = expensive ? 2.0 : 1.0;
   ScreenRay ray = project_ray(origin, direction);
-  float iterations, highest_level = 0.0;
-  float t = expensive ? march_hiz(ray, iterations, highest_level) : march_linear(ray, iterations);
+  float iterations = 0.0, highest_level = 0.0, t;
+  vec2 hit_px;
+  vec3 hit_normal;
+  for (int attempt = 0;; attempt++) {
+    float steps, level = 0.0;
+    t = expensive ? march_hiz(ray, steps, level) : march_linear(ray, steps);
+    iterations += steps;
+    highest_level = max(highest_level, level);
+    if (t < 0.0) {
+      break;
+    }
+    hit_px = ray_position_px(ray, t);
+    hit_normal = view_normal(texelFetch(normal_tx, texel_at(hit_px), 0).xyz);
+    vec3 hit_position = ray_view_position(ray, t);
+    float footprint = pixel_footprint(-hit_position.z);
+    /* Near its origin a ray that leaves its surface at a grazing angle runs within a pixel's
+     * depth of it, and the next pixels of that same surface count as hit from behind: where
+     * the floor meets a wall, its rays never reached the wall (a dark line along the contact).
+     * Such a ray goes on from past that point. */
+    bool own_surface = dot(hit_normal, normal) > 0.99 &&
+                       abs(dot(normal, hit_position - origin)) < SELF_HIT_PX * footprint;
+    if (!(dot(hit_normal, direction) > 0.0 && own_surface) || attempt == SELF_HIT_RETRIES) {
+      break;
+    }
+    ray = project_ray(hit_position + direction * footprint, direction);
+  }
   ray_stats_img.yz = vec2(iterations, highest_level);
   if (t < 0.0) {
     ray_stats_img.w = float(miss_outcome(ray, screen_exit(ray)));
     return;
   }
-  vec2 hit_px = ray_position_px(ray, t);
   vec2 hit_uv = hit_px * params.pixel_size;
-  vec3 hit_normal = view_normal(texelFetch(normal_tx, texel_at(hit_px), 0).xyz);
   if (dot(hit_normal, direction) > 0.0) {
     ray_stats_img.w = float(RAY_OUTCOME_BEHIND); /* back face: the ray hit the far side of a surface */
     return;
