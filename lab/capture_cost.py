@@ -16,8 +16,6 @@ import time
 
 import numpy as np
 
-from ssr_addon.batch.cli import ArgumentParser
-from ssr_addon.batch.request import parse_resolution
 from ssr_addon.blender.gpu_context import ensure_backend
 from ssr_addon.blender.overrides import TemporaryChanges
 from ssr_addon.blender.render_passes import render_passes
@@ -28,7 +26,7 @@ from ssr_addon.blender.scene_io import load_scene
 from ssr_addon.blender.viewport_capture import headless_viewport
 from ssr_addon.core.gpu_backend import describe_gpu
 from .bench.scenes import resolve_scene, scene_label
-from .docs import require_page, rewrite_block
+from .docs import require_page, rewrite_block, scenes_parser
 
 SCENES = ("hidden_underside", "steel_room", "mirror_floor")
 SAMPLES = 16
@@ -96,11 +94,7 @@ def measure(name, resolution):
 
 
 def main(argv):
-    parser = ArgumentParser(prog="python -m lab captures", description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES))
-    parser.add_argument("--resolution", type=parse_resolution, default=(320, 180))
-    parser.add_argument("--page", help="rewrite the capture-cost block of this markdown page")
-    arguments = parser.parse_args(argv)
+    arguments = scenes_parser("captures", __doc__, SCENES, (320, 180), "capture-cost").parse_args(argv)
     require_page(arguments.page)
     rows = [measure(name, arguments.resolution) for name in arguments.scenes]
     width, height = arguments.resolution

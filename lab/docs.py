@@ -2,7 +2,9 @@
 measures rewrites its own block, between <!-- NAME:start --> and <!-- NAME:end -->."""
 import os
 
+from ssr_addon.batch.cli import ArgumentParser
 from ssr_addon.batch.outputs import written_together
+from ssr_addon.batch.request import parse_resolution
 from ssr_addon.core.errors import SSRError
 
 MEASUREMENTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "docs", "measurements.md")
@@ -34,3 +36,13 @@ def rewrite_block(page, name, body, heading):
 def page_link(page, path):
     """PATH (from the repository root) as the markdown page PAGE links to it."""
     return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(page)))
+
+
+def scenes_parser(command, doc, scenes, resolution, block):
+    """The argument parser of a lab COMMAND that measures SCENES at a RESOLUTION and may rewrite
+    the page's BLOCK: --scenes, --resolution and --page."""
+    parser = ArgumentParser(prog=f"python -m lab {command}", description=doc.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=list(scenes))
+    parser.add_argument("--resolution", type=parse_resolution, default=resolution)
+    parser.add_argument("--page", help=f"rewrite the {block} block of this markdown page")
+    return parser

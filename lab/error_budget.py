@@ -4,24 +4,34 @@
 
 For each bench scene, a still of the frame the bench scores (`make bench`: frame 8), FLIP on the reflective
 pixels against the bench's cached Cycles reference, beside EEVEE's ray tracing:
-- ours: the balanced chain over EEVEE's passes, as the bench renders it;
+- eevee-rt-planar: EEVEE's ray tracing with its own plane probe on the scene's main reflector
+  (scenes with a flat mesh);
+- ours: the balanced chain over EEVEE's passes, as the bench renders it (fallback=auto);
+- ours, screen alone: the same with fallback=off, screen space and nothing past it;
 - correct screen space: EEVEE's frame with the reflection a correct screen-space method
   would show (lab.ideal_reflection: exact rays, EEVEE's Combined where the
   camera sees their hits, EEVEE's probe/world reflection elsewhere). No screen-space
   reflection over EEVEE's frame does better, but by errors that cancel EEVEE's;
+- perfect fallback: ours, screen alone, with Cycles' reflection wherever its rays missed
+  (1 - confidence): the ceiling of any fallback hierarchy after our screen trace;
 - correct reflections: EEVEE's frame with Cycles' own reflections in place of EEVEE's
   probe/world reflection: what a perfect reflection method would reach over EEVEE's lighting;
 - ours on Cycles' passes: the same chain over a Cycles render (its lighting, no EEVEE in it).
 The "Right before new" issue's goal is a ratio to EEVEE's ray tracing of at most 0.8.
 """
+from dataclasses import replace
+
 import numpy as np
 
 from ssr_addon.batch.cli import ArgumentParser
 from ssr_addon.batch.frame import render_frame
 from ssr_addon.batch.request import RenderRequest, parse_resolution
+from ssr_addon.blender.baselines import apply_baseline
 from ssr_addon.blender.lamp_renders import lamp_world_for_run
 from ssr_addon.blender.overrides import TemporaryChanges
 from ssr_addon.blender.scene_io import load_scene
+from ssr_addon.core.errors import SSRError
+from ssr_addon.core.settings import ChainSettings
 from .bench import DEFAULT_CACHE, DEFAULT_SCENES, EEVEE_SAMPLES, REFERENCE_SAMPLES, flip_error, render_reference
 from .bench.scenes import resolve_scene
 from .docs import require_page, rewrite_block
@@ -30,7 +40,8 @@ from .ideal_reflection import ideal_screen_space, with_reflection
 GOAL = 0.8
 CYCLES_SAMPLES = 512
 CYCLES_SEED = 7  # not one of the reference's seeds, so its noise is not the reference's
-COLUMNS = ("eevee-rt", "ours", "correct screen space", "correct reflections", "ours on Cycles' passes")
+COLUMNS = ("eevee-rt", "eevee-rt-planar", "ours", "ours, screen alone", "correct screen space", "perfect fallback",
+           "correct reflections", "ours on Cycles' passes")
 
 
 def measure(scene_name, frame_number, resolution, cache):
@@ -42,31 +53,50 @@ def measure(scene_name, frame_number, resolution, cache):
     scene.frame_set(frame)
     images = {}
     with lamp_world_for_run():
-        def render(method, engine="eevee", samples=EEVEE_SAMPLES):
-            return render_frame(scene, RenderRequest(out_dir="", method=method, engine=engine,
-                                                     resolution=resolution, samples=samples))[0]
+        def render(method, engine="eevee", samples=EEVEE_SAMPLES, **settings):
+            request = RenderRequest(out_dir="", method=method, engine=engine, resolution=resolution, samples=samples,
+                                    settings=replace(ChainSettings(), **settings))
+            return render_frame(scene, request)[0]
         images["eevee-rt"] = render("eevee-rt").final
+        with TemporaryChanges() as changes:
+            try:
+                apply_baseline(scene, "planar", changes)
+                images["eevee-rt-planar"] = render("eevee-rt").final
+            except SSRError:
+                pass  # no flat mesh to put EEVEE's plane probe on
         ours = render("ssr")
         images["ours"] = ours.final
+        screen_alone = render("ssr", fallback="off")
+        images["ours, screen alone"] = screen_alone.final
         with TemporaryChanges() as changes:
             changes.set(scene.cycles, "seed", CYCLES_SEED)
             on_cycles = render("ssr", "cycles", CYCLES_SAMPLES)
     images["ours on Cycles' passes"] = on_cycles.final
-    eevee, cycles = ours.passes, on_cycles.passes
+    eevee, cycles = screen_alone.passes, on_cycles.passes
     premultiplied, confidence = ideal_screen_space(scene, eevee)
-    images["correct screen space"] = with_reflection(ours, eevee.specular_color * premultiplied, confidence)
+    images["correct screen space"] = with_reflection(screen_alone, eevee.specular_color * premultiplied, confidence)
     cycles_reflection = cycles.specular_color * on_cycles.layers["Specular Indirect"]
-    images["correct reflections"] = with_reflection(ours, cycles_reflection, np.ones(eevee.depth.shape, np.float32))
-    return {column: flip_error(reference.image, images[column][..., :3], reference.mask) for column in COLUMNS}
+    images["correct reflections"] = with_reflection(screen_alone, cycles_reflection,
+                                                    np.ones(eevee.depth.shape, np.float32))
+    missed = 1.0 - screen_alone.layers["SSR Confidence"][..., 0]
+    images["perfect fallback"] = screen_alone.final[..., :3] + missed[..., None] * (
+        cycles_reflection - eevee.specular_color * screen_alone.layers["Specular Indirect"])
+    return {column: flip_error(reference.image, images[column][..., :3], reference.mask)
+            for column in COLUMNS if column in images}
 
 
 def table(rows):
     lines = ["| scene | " + " | ".join(COLUMNS) + " |", "|---" + "|---:" * len(COLUMNS) + "|"]
     for name, scores in rows.items():
         baseline = scores["eevee-rt"]
-        cells = [f"{scores[column]:.4f}" + ("" if column == "eevee-rt" else f" ({scores[column] / baseline:.2f})")
-                 for column in COLUMNS]
+        cells = ["-" if column not in scores else f"{scores[column]:.4f}"
+                 + ("" if column == "eevee-rt" else f" ({scores[column] / baseline:.2f})") for column in COLUMNS]
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    means = []
+    for column in COLUMNS[1:]:
+        ratios = [scores[column] / scores["eevee-rt"] for scores in rows.values() if column in scores]
+        means.append(f"{np.exp(np.mean(np.log(ratios))):.2f}" if ratios else "-")
+    lines.append("| geometric mean of the ratios | | " + " | ".join(means) + " |")
     return lines
 
 

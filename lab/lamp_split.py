@@ -10,16 +10,15 @@ frames.
 """
 from dataclasses import replace
 
-from ssr_addon.batch.cli import ArgumentParser
 from ssr_addon.batch.frame import render_frame
-from ssr_addon.batch.request import RenderRequest, parse_resolution
+from ssr_addon.batch.request import RenderRequest
 from ssr_addon.blender.lamp_renders import lamp_world_for_run
 from ssr_addon.blender.scene_io import load_scene
 from ssr_addon.core.gpu_backend import describe_gpu
 from ssr_addon.core.settings import ChainSettings
 from .bench.metrics import reflective_mask, relative_mae
 from .bench.scenes import resolve_scene, scene_label
-from .docs import require_page, rewrite_block
+from .docs import require_page, rewrite_block, scenes_parser
 
 SCENES = ("mirror_floor", "rough_spheres", "curved_mirror", "rolling_ball", "wet_street", "emissive_panel",
           "crossed_shadows")
@@ -56,11 +55,7 @@ def _percent(value, digits):
 
 
 def main(argv):
-    parser = ArgumentParser(prog="python -m lab lamps", description=__doc__.splitlines()[0])
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES))
-    parser.add_argument("--resolution", type=parse_resolution, default=(160, 90))
-    parser.add_argument("--page", help="rewrite the lamp-split block of this markdown page")
-    arguments = parser.parse_args(argv)
+    arguments = scenes_parser("lamps", __doc__, SCENES, (160, 90), "lamp-split").parse_args(argv)
     require_page(arguments.page)
     rows = [measure(name, arguments.resolution) for name in arguments.scenes]
     width, height = arguments.resolution

@@ -54,9 +54,9 @@ def performance(context):
 
 
 def limits(context):
-    ssr = context.render(OCCLUDED)
-    cutoff, = context.chain(EDGE, border_fade=0.0)
-    fading = context.render(EDGE)
+    ssr = context.render(OCCLUDED, fallback="off")
+    cutoff, = context.chain(EDGE, border_fade=0.0, fallback="off")
+    fading = context.render(EDGE, fallback="off")
     edge = context.reference(EDGE)
     numbers = {"hidden_flip": context.error(OCCLUDED, ssr)["flip"],
                "hidden_fallback_flip": context.error(OCCLUDED, context.render(OCCLUDED, "NONE"))["flip"],
@@ -78,3 +78,35 @@ def limits(context):
         "the screen before the rays leave it, it hands over smoothly to the world reflection. The seam's "
         "strength (the bench's stability measure: 0 a smooth fade, 1 a one-pixel cut) is {cutoff_seam} cut off and "
         "{fading_seam} faded.")
+
+
+# Each failure of screen space beside the level of the fallback hierarchy that fixes it:
+# (label, scene, the level).
+BEYOND_THE_SCREEN = (("Edge cutoff", EDGE, "guard_band"), ("Hidden geometry", OCCLUDED, "cube"),
+                     ("Off-screen content", "steel_room", "planar"))
+
+
+def beyond_the_screen(context):
+    images, numbers = [], {}
+    for label, name, level in BEYOND_THE_SCREEN:
+        reference = context.reference(name)
+        for key, render in (("screen", context.render(name, fallback="off")),
+                            (level, context.render(name, fallback=level))):
+            numbers[f"{name}_{key}_flip"] = context.error(name, render)["flip"]
+            numbers[f"{name}_{key}_s"] = round(render.wall_ms / 1000.0, 1)
+            images.append((f"{label}: {'screen alone' if key == 'screen' else level.replace('_', ' ')}",
+                           context.save(f"beyond_{name}_{key}.png", render.final)))
+        images.append((f"{label}: Cycles", context.save(f"beyond_{name}_cycles.png", reference.image)))
+    edge, hidden, room = (name for _, name, _ in BEYOND_THE_SCREEN)
+    return section("Beyond the screen", images, numbers,
+                   "Each level of the fallback hierarchy after the screen trace, on the failure it fixes, with "
+                   "FLIP against Cycles on the reflective pixels and the frame's seconds. Edge cutoff: the frame "
+                   "rendered with a guard band, so the pillars' tops just above it are traced "
+                   f"(FLIP {{{edge}_screen_flip}} screen alone, {{{edge}_guard_band_flip}} with the band; "
+                   f"{{{edge}_screen_s}} s, {{{edge}_guard_band_s}} s). Hidden geometry: a depth cube map "
+                   "from a point in free space sees the panel behind the board "
+                   f"({{{hidden}_screen_flip}}, {{{hidden}_cube_flip}}; {{{hidden}_screen_s}} s, "
+                   f"{{{hidden}_cube_s}} s). Off-screen content: the closed room's ceiling lies above the frame, "
+                   "and a planar capture of the floor (the scene seen from the camera mirrored in it) shows "
+                   f"it ({{{room}_screen_flip}}, {{{room}_planar_flip}}; {{{room}_screen_s}} s, "
+                   f"{{{room}_planar_s}} s).")
