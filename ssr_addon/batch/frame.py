@@ -104,7 +104,7 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
                           RENDER_RAYTRACING.get(request.method), lamp_split=settings.lamp_split if use_ssr else "off",
                           fallback=settings.fallback if use_ssr else "off", max_roughness=settings.max_roughness,
                           guard_band=settings.guard_band_size if guard_band else 0.0,
-                          cube_size=settings.cube_size if cube else 0)
+                          cube_size=settings.cube_size if cube else 0, capture_engine=settings.capture_engine)
     if setup.lamp_split.method == "analytic":
         timer.lap("lamp_split")  # reading the scene's lights; the chain adds its pass
     passes = render_passes(scene, setup, timer, fallbacks.captures)

@@ -55,6 +55,7 @@ class RenderSetup:
     max_roughness: float = 1.0   # of the pixels SSR traces from (the auto capture's yardstick)
     guard_band: tuple = (0, 0)   # pixels rendered beyond the frame on each side, (x, y)
     cube_size: int = 0           # pixels along a side of each depth cube map face; 0: no cube map
+    capture_engine: str = "eevee"  # what renders the captures (ChainSettings.capture_engine)
 
     @property
     def rendered_size(self):
@@ -158,13 +159,13 @@ def planar_capture_mode(fallback):
 
 
 def decide_render(scene, engine="eevee", samples=None, resolution=None, raytracing=None, lamp_split="auto",
-                  fallback="off", max_roughness=1.0, guard_band=0.0, cube_size=0):
+                  fallback="off", max_roughness=1.0, guard_band=0.0, cube_size=0, capture_engine="eevee"):
     """The RenderSetup of SCENE's current frame: SAMPLES and RESOLUTION default to the scene's
     own (render_samples, render_size); RAYTRACING names an EEVEE_RAYTRACING set-up (None: the
     scene's own setting); LAMP_SPLIT is decide_lamp_split's; FALLBACK (ChainSettings.fallback)
     and MAX_ROUGHNESS decide the planar capture; GUARD_BAND is the share of each side rendered
-    beyond the frame (0: none); CUBE_SIZE the depth cube map's face size (0: none). Bad input
-    raises SSRError."""
+    beyond the frame (0: none); CUBE_SIZE the depth cube map's face size (0: none);
+    CAPTURE_ENGINE what renders the captures. Bad input raises SSRError."""
     require_camera(scene)
     if engine not in ENGINES:
         raise SSRError(f"unknown engine {engine!r}: expected one of {', '.join(ENGINES)}")
@@ -172,7 +173,7 @@ def decide_render(scene, engine="eevee", samples=None, resolution=None, raytraci
     size = render_size(scene, resolution)
     return RenderSetup(engine, size, render_samples(scene, engine, samples), raytracing,
                        decide_lamp_split(scene, engine, lamp_split), planar_capture_mode(fallback), max_roughness,
-                       guard_band_pixels(size, guard_band), cube_size)
+                       guard_band_pixels(size, guard_band), cube_size, capture_engine)
 
 
 def rendered_view_layer(scene):

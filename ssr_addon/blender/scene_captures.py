@@ -39,6 +39,8 @@ AUTO_MIN_REFLECTOR_SHARE = 0.05
 # are the reflector's.
 PLANE_TOLERANCE = 2e-3
 PLANE_NORMAL_COS = 0.99
+# capture_engine=cycles: samples per pixel of a capture, denoised.
+CYCLES_CAPTURE_SAMPLES = 32
 _FLIP_X = np.diag((-1.0, 1.0, 1.0, 1.0))
 
 
@@ -231,7 +233,20 @@ class SceneCaptures:
         return kept[1]
 
     def _draws(self, setup):
-        return self.viewport is not None and setup.engine == "eevee"
+        return self.viewport is not None and setup.engine == "eevee" and setup.capture_engine == "eevee"
+
+    @staticmethod
+    def _rendered(scene, setup, changes, render):
+        """RENDER() the capture with setup.capture_engine: Cycles at CYCLES_CAPTURE_SAMPLES,
+        denoised, where it asks for Cycles."""
+        if setup.capture_engine == "cycles" and scene.render.engine != "CYCLES":
+            with TemporaryChanges() as engine:
+                engine.set(scene.render, "engine", "CYCLES")
+                engine.set(scene.cycles, "samples", CYCLES_CAPTURE_SAMPLES)
+                engine.set(scene.cycles, "use_denoising", True)
+                engine.set(scene.cycles, "device", "CPU")
+                return render()
+        return render()
 
     def planar(self, scene, view_layer, setup, passes, folder, changes):
         """The PlanarCapture SETUP asks for of the frame's PASSES, or None: with planar_capture
@@ -249,21 +264,24 @@ class SceneCaptures:
                 reflector_share(passes, found[1], setup.max_roughness) < AUTO_MIN_REFLECTOR_SHARE:
             return None
         size = setup.rendered_size
-        key = (capture_key(scene, with_camera=True), size, setup.samples, setup.engine, found[1])
+        key = (capture_key(scene, with_camera=True), size, setup.samples, setup.engine, setup.capture_engine, found[1])
         if self._draws(setup):
             return self._reuse("planar", key, lambda: draw_planar_capture(
                 scene, view_layer, self.viewport, size, setup.samples, *found, changes))
-        return self._reuse("planar", key, lambda: render_planar_capture(scene, size, *found, folder, changes))
+        return self._reuse("planar", key, lambda: self._rendered(
+            scene, setup, changes, lambda: render_planar_capture(scene, size, *found, folder, changes)))
 
     def cube(self, scene, view_layer, setup, folder, changes):
         """The CubeCapture SETUP asks for (setup.cube_size: the pixels of a face's side; 0: none)."""
         if not setup.cube_size:
             return None
-        key = (capture_key(scene, with_camera=False), setup.cube_size, setup.samples, setup.engine)
+        key = (capture_key(scene, with_camera=False), setup.cube_size, setup.samples, setup.engine,
+               setup.capture_engine)
         if self._draws(setup):
             return self._reuse("cube", key, lambda: draw_cube_capture(scene, view_layer, self.viewport,
                                                                       setup.cube_size, setup.samples))
-        return self._reuse("cube", key, lambda: render_cube_capture(scene, setup.cube_size, folder, changes))
+        return self._reuse("cube", key, lambda: self._rendered(
+            scene, setup, changes, lambda: render_cube_capture(scene, setup.cube_size, folder, changes)))
 
     def release(self):
         self._held.restore()

@@ -230,6 +230,9 @@ class FrameRun:
             for resource, stand_in in gpu_pass.skipped:
                 self.resources[resource] = self.resources[stand_in]
                 self.produced[resource] = self.produced.get(stand_in)
+            for resource, placeholder in gpu_pass.placeholders:
+                self.resources[resource] = self.resources[placeholder]
+                self.produced.pop(resource, None)
             return
         samplers = [(sampler, self.resources[sampler[:-len("_tx")]]) for sampler in gpu_pass.samplers]
         pool = frame.state.pool

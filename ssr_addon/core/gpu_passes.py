@@ -86,8 +86,9 @@ class GPUPass:
 
     SAMPLERS read resources by name (`X_tx` reads X); RUNS(frame) says whether it runs in a frame
     (chain.FrameContext), and SKIPPED which resource stands in for each of its outputs when it
-    does not. STAGE names its time in a StageTimer (None: a
-    helper draw its caller times)."""
+    does not; PLACEHOLDERS, for outputs its readers then leave unread, which texture is bound
+    in their place (the frame then has no such resource: its layers read zero). STAGE names its
+    time in a StageTimer (None: a helper draw its caller times)."""
     name: str
     source: str
     stage: str = None
@@ -100,6 +101,7 @@ class GPUPass:
     volume_samplers: tuple = ()    # 3D textures
     runs: object = _always
     skipped: tuple = ()            # (resource, the resource that stands in for it)
+    placeholders: tuple = ()       # (resource, a texture bound for it that nothing reads): not produced
     directory: str = SHADER_DIR
 
     def draw(self, targets, samplers=(), uniform_blocks=(), constants=(), region=None):
@@ -210,7 +212,7 @@ PLANAR_TRACE = GPUPass(
     "planar_trace", "planar_trace.glsl", stage="planar",
     samplers=("ray_hit_tx", "ray_dir_tx", "ray_stats_tx", "depth_tx", "normal_tx", "roughness_tx",
               "history_record_tx", "capture_depth_tx", "capture_normal_tx", "capture_color_tx"),
-    outputs=(Output("capture_hit_img", size="trace"),
+    outputs=(Output("planar_hit_img", size="trace", layers=(Layer("SSR Planar Hit", "RGBA"),)),
              Output("ray_outcome_img", size="trace", layers=(
                  Layer("SSR Resolved By", "V", channels=(3,), view=DebugView(
                      "RESOLVED_BY", "Resolved By",
@@ -220,14 +222,15 @@ PLANAR_TRACE = GPUPass(
     libraries=(*COMMON_LIBRARIES, "screen_ray_lib.glsl", "linear_march_lib.glsl", "ggx_lib.glsl",
                "history_lib.glsl"),
     defines=_CAPTURE_SCREEN, runs=lambda frame: frame.inputs.capture is not None,
-    skipped=(("capture_hit", "ray_hit"), ("ray_outcome", "ray_stats")))
+    skipped=(("ray_outcome", "ray_stats"),), placeholders=(("planar_hit", "ray_hit"),))
 CUBE_TRACE = GPUPass(
     "cube_trace", "cube_trace.glsl", stage="cube",
-    samplers=("ray_hit_tx", "ray_dir_tx", "capture_hit_tx", "ray_outcome_tx", "depth_tx", "normal_tx", "roughness_tx",
+    samplers=("ray_hit_tx", "ray_dir_tx", "planar_hit_tx", "ray_outcome_tx", "depth_tx", "normal_tx", "roughness_tx",
               "history_record_tx", "cube_depth_tx", "cube_color_tx"),
-    outputs=(Output("capture_hit_img", size="trace"), Output("ray_outcome_img", size="trace")),
+    outputs=(Output("capture_hit_img", size="trace", layers=(Layer("SSR Capture Hit", "RGBA"),)),
+             Output("ray_outcome_img", size="trace")),
     libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"),
-    runs=lambda frame: frame.inputs.cube is not None)
+    runs=lambda frame: frame.inputs.cube is not None, skipped=(("capture_hit", "planar_hit"),))
 RESOLVE = GPUPass(
     "resolve", "resolve.glsl", stage="resolve",
     samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx",

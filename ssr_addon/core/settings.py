@@ -130,6 +130,13 @@ class ChainSettings:
     guard_band_size: float = _setting(
         0.06, "Guard band: share of the frame's width and height rendered beyond each of its sides "
               "(4-8 % gives most of the benefit for 17-35 % more pixels)", 0.01, 0.25, group="fallback")
+    capture_engine: str = _setting(
+        "eevee", "What renders the fallback levels' captures",
+        items=(("eevee", "EEVEE", "EEVEE, drawn through the 3D View where there is one: fast; what they show is lit "
+                                  "without indirect light, as EEVEE lights the frame"),
+               ("cycles", "Cycles", "Cycles at a few samples, denoised: what they show is lit as a path tracer "
+                                    "lights it, at the cost of a Cycles render per capture")),
+        group="fallback")
     cube_size: int = _setting(128, "Depth cube map: pixels along each face's side", 16, 2048, group="fallback")
     cube_steps: int = _setting(64, "Depth cube map: march steps per ray before the secant search", 8, 512,
                                group="fallback")

@@ -12,7 +12,7 @@
  * behind the surface the cube shows, the ray went behind that surface's silhouette as seen
  * from the centre, not into it, and the march goes on.
  *
- * Inputs:  ray_hit_tx, ray_dir_tx (the screen trace), capture_hit_tx, ray_outcome_tx (the planar
+ * Inputs:  ray_hit_tx, ray_dir_tx (the screen trace), planar_hit_tx, ray_outcome_tx (the planar
  *          capture's where it ran, params.capture_levels), depth_tx, normal_tx, roughness_tx,
  *          history_record_tx (the frame), cube_depth_tx, cube_color_tx (the faces in a 3 x 2
  *          atlas: axis distance, colour pyramid).
@@ -101,7 +101,7 @@ float march_cube(vec3 origin, vec3 direction, float first_step, out vec2 hit_px)
 void main()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy);
-  vec4 captured = (params.capture_levels & CAPTURE_LEVEL_PLANAR) != 0 ? texelFetch(capture_hit_tx, texel, 0) :
+  vec4 captured = (params.capture_levels & CAPTURE_LEVEL_PLANAR) != 0 ? texelFetch(planar_hit_tx, texel, 0) :
                                                                          vec4(0.0);
   vec4 outcome = texelFetch(ray_outcome_tx, texel, 0);
   capture_hit_img = captured;

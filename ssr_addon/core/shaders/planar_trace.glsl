@@ -14,7 +14,7 @@
  * Inputs:  ray_hit_tx, ray_dir_tx, ray_stats_tx (the screen trace), depth_tx, normal_tx,
  *          roughness_tx, history_record_tx (the frame), capture_depth_tx, capture_normal_tx,
  *          capture_color_tx (the capture: view depth, world normal, colour pyramid atlas).
- * Outputs: capture_hit_img = (radiance of the hit, share of the ray it resolves: 0 for a ray
+ * Outputs: planar_hit_img = (radiance of the hit, share of the ray it resolves: 0 for a ray
  *                            it did not take, the capture's edge fade for one it hit),
  *          ray_outcome_img = (hit distance, 0, 0, RAY_OUTCOME_*: PLANAR where it hit, the
  *                            screen trace's outcome elsewhere). */
@@ -46,7 +46,7 @@ void main()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy);
   vec4 screen_stats = texelFetch(ray_stats_tx, texel, 0);
-  capture_hit_img = vec4(0.0);
+  planar_hit_img = vec4(0.0);
   ray_outcome_img = vec4(0.0, 0.0, 0.0, screen_stats.w);
   vec4 hit = texelFetch(ray_hit_tx, texel, 0);
   if (!(hit.z > 0.0) || screen_stats.x == 0.0) {
@@ -89,6 +89,6 @@ void main()
                                       ggx_alpha(roughness));
   vec2 hit_uv = hit_px / params.capture_size;
   vec3 radiance = capture_radiance(hit_uv, -hit_position.z, hit_distance, solid_angle);
-  capture_hit_img = vec4(radiance, border_fade(hit_uv, ray.delta_px));
+  planar_hit_img = vec4(radiance, border_fade(hit_uv, ray.delta_px));
   ray_outcome_img = vec4(hit_distance, 0.0, 0.0, float(RAY_OUTCOME_PLANAR));
 }
