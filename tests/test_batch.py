@@ -99,3 +99,27 @@ def test_an_interrupted_write_leaves_no_partial_frame(dolly, tmp_path, monkeypat
     with pytest.raises(KeyboardInterrupt):
         run_render(scene, str(dolly), request, log=lambda line: None)
     assert not [name for name in os.listdir(tmp_path) if name.startswith(("frame_", ".frame_"))]
+
+
+def test_compare_times_each_mode_after_a_warm_up_of_its_own(monkeypatch):
+    """A mode's first render compiles EEVEE's shaders for its set-up: compare renders each mode
+    once at a quarter of the size, then the one it times and shows."""
+    import types
+    import bpy
+    from ssr_addon.batch import compare
+    from ssr_addon.batch.request import RenderRequest
+    bpy.ops.wm.read_homefile(use_empty=True, use_factory_startup=True)
+    scene = bpy.context.scene
+    scene.camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(scene.camera)
+    renders = []
+
+    def fake_render_mode(scene, mode, request, state=None, **objects):
+        renders.append((mode, request.resolution))
+        width, height = request.resolution
+        return types.SimpleNamespace(final=np.zeros((height, width, 4), np.float32)), None
+    monkeypatch.setattr(compare, "render_mode", fake_render_mode)
+    monkeypatch.setattr(compare, "comparison_sheet", lambda tiles: tiles)
+    compare.compare_modes(scene, RenderRequest(out_dir="", resolution=(320, 180)))
+    modes = [mode for mode, _, _ in compare.COMPARISON_MODES]
+    assert renders == [step for mode in modes for step in ((mode, (80, 45)), (mode, (320, 180)))]

@@ -6,6 +6,8 @@ RenderRequest, never bpy.context.
 """
 from dataclasses import dataclass
 
+import bpy
+
 import numpy as np
 
 from ..blender.colour_management import write_display_png
@@ -44,7 +46,9 @@ class FrameFallbacks:
     again with them where it needs either."""
 
     def __init__(self):
-        self.captures = SceneCaptures(headless_viewport())
+        # Headless, the file's 3D View is nobody's: captures draw through it. In Blender's
+        # window it is the artist's, whose shading they would switch: they render instead.
+        self.captures = SceneCaptures(headless_viewport() if bpy.app.background else None)
         self.guard_band = self.cube = None  # undecided until the first frame under auto
 
     def decide(self, unresolved):
