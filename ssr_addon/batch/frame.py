@@ -7,7 +7,6 @@ RenderRequest, never bpy.context.
 from dataclasses import dataclass
 
 import bpy
-
 import numpy as np
 
 from ..blender.colour_management import write_display_png
