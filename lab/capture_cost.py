@@ -48,9 +48,10 @@ def measure(name, resolution):
     scene = load_scene(resolve_scene(name))
     ensure_backend()
     for _ in range(2):
-        _, render_s = _timed(lambda: render_passes(scene, decide_render(scene, samples=SAMPLES,
-                                                                        resolution=resolution)))
-    found = find_reflector(scene)
+        passes, render_s = _timed(lambda: render_passes(scene, decide_render(scene, samples=SAMPLES,
+                                                                             resolution=resolution)))
+    found = find_reflector(scene, passes, 1.0)
+    found = found[:2] if found is not None else None
     row = {"scene": scene_label(resolve_scene(name)), "render": render_s}
     view_layer = rendered_view_layer(scene)
 

@@ -204,24 +204,16 @@ def _flat_extent(obj):
     return size.x / 2, size.y / 2
 
 
-def largest_flat_mesh(scene):
-    """The rendered mesh, flat along its local Z axis, of the largest area (a floor, a mirror,
-    water), or None."""
+def _largest_flat_mesh(scene):
     def world_area(obj):
         half_x, half_y = _flat_extent(obj)
         scale = obj.matrix_world.to_scale()
         return half_x * abs(scale.x) * half_y * abs(scale.y)
     flat = [obj for obj in rendered_geometry(scene) if _flat_extent(obj) is not None]
-    return max(flat, key=world_area) if flat else None
-
-
-def _largest_flat_mesh(scene):
-    mirror = largest_flat_mesh(scene)
-    if mirror is None:
+    if not flat:
         raise SSRError(f"scene '{scene.name}' has no flat mesh for the planar mode: "
                        "choose a mirror plane in the SSR tab")
-    return mirror
-
+    return max(flat, key=world_area)
 
 
 def _add_plane_probe(scene, changes, mirror):

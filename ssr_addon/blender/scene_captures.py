@@ -27,7 +27,7 @@ from mathutils import Matrix, Vector
 from ..core.captures import CubeCapture, PlanarCapture, cube_atlas, cube_face_projection, cube_face_views, mirror_matrix
 from ..core.errors import SSRError
 from ..core.inputs import BACKGROUND_DEPTH
-from .baselines import default_probe_placement, largest_flat_mesh, rendered_geometry
+from .baselines import default_probe_placement, rendered_geometry
 from .exr_render import pass_layer, render_to_exr
 from .overrides import TemporaryChanges
 from .scene_io import camera_matrices, view_depth
@@ -35,6 +35,10 @@ from .scene_io import camera_matrices, view_depth
 # Under fallback=auto the frame gets a capture when the reflector holds at least this share of
 # its reflected light (the specular colour of every pixel SSR traces from).
 AUTO_MIN_REFLECTOR_SHARE = 0.05
+# A reflector is a plane or a slab this thin against its size; of the largest few, the one
+# holding most of the frame's reflected light.
+REFLECTOR_THINNESS = 0.02
+REFLECTOR_CANDIDATES = 4
 # Pixels this close to the plane, relative to their depth, with a normal this close to its,
 # are the reflector's.
 PLANE_TOLERANCE = 2e-3
@@ -44,21 +48,48 @@ CYCLES_CAPTURE_SAMPLES = 32
 _FLIP_X = np.diag((-1.0, 1.0, 1.0, 1.0))
 
 
-def reflector_plane(scene, reflector):
-    """(nx, ny, nz, d) of REFLECTOR's plane in world space, n towards the scene camera."""
+def _thin_axis(obj):
+    """(local axis, half thickness, area in world units) of a mesh thin along one local axis
+    (a plane, or a slab: a floor, a table top, a mirror), or None."""
+    if obj.type != "MESH":
+        return None
+    low, high = Vector(map(min, zip(*obj.bound_box))), Vector(map(max, zip(*obj.bound_box)))
+    scale = obj.matrix_world.to_scale()
+    size = [abs((high[axis] - low[axis]) * scale[axis]) for axis in range(3)]
+    axis = min(range(3), key=size.__getitem__)
+    across = [size[other] for other in range(3) if other != axis]
+    if min(across) <= 0.0 or size[axis] > REFLECTOR_THINNESS * max(across):
+        return None
+    return axis, (high[axis] - low[axis]) / 2.0, across[0] * across[1]
+
+
+def reflector_plane(scene, reflector, axis=2, half_thickness=0.0):
+    """(nx, ny, nz, d) of the face of REFLECTOR across its local AXIS that faces the scene
+    camera (HALF_THICKNESS from its centre, in local units), n towards the camera."""
     world = reflector.matrix_world
-    normal = (world.to_3x3().inverted_safe().transposed() @ Vector((0.0, 0.0, 1.0))).normalized()
-    centre = world @ (sum((Vector(corner) for corner in reflector.bound_box), Vector()) / 8.0)
-    offset = -normal.dot(centre)
-    if normal.dot(scene.camera.matrix_world.translation) + offset < 0.0:
-        normal, offset = -normal, -offset
-    return tuple(float(value) for value in (*normal, offset))
+    local_axis = Vector([1.0 if index == axis else 0.0 for index in range(3)])
+    local_centre = sum((Vector(corner) for corner in reflector.bound_box), Vector()) / 8.0
+    normal = (world.to_3x3().inverted_safe().transposed() @ local_axis).normalized()
+    camera = scene.camera.matrix_world.translation
+    side = 1.0 if normal.dot(camera - world @ local_centre) >= 0.0 else -1.0
+    face = world @ (local_centre + local_axis * half_thickness * side)
+    normal *= side
+    return tuple(float(value) for value in (*normal, -normal.dot(face)))
 
 
-def find_reflector(scene):
-    """(object, plane) of the scene's main flat reflector facing the camera, or None."""
-    reflector = largest_flat_mesh(scene)
-    return None if reflector is None else (reflector, reflector_plane(scene, reflector))
+def find_reflector(scene, passes, max_roughness):
+    """(object, plane, share) of the scene's main flat reflector: of its REFLECTOR_CANDIDATES
+    largest planes and slabs, the one whose plane holds most of the frame's reflected light
+    (reflector_share of PASSES), or None where there is none."""
+    thin = [(obj, found) for obj in rendered_geometry(scene) if (found := _thin_axis(obj)) is not None]
+    thin.sort(key=lambda candidate: -candidate[1][2])
+    best = None
+    for obj, (axis, half_thickness, _) in thin[:REFLECTOR_CANDIDATES]:
+        plane = reflector_plane(scene, obj, axis, half_thickness)
+        share = reflector_share(passes, plane, max_roughness)
+        if best is None or share > best[2]:
+            best = (obj, plane, share)
+    return best
 
 
 def reflector_share(passes, plane, max_roughness):
@@ -255,14 +286,14 @@ class SceneCaptures:
         render through CHANGES."""
         if setup.planar_capture == "off":
             return None
-        found = find_reflector(scene)
+        found = find_reflector(scene, passes, setup.max_roughness)
         if found is None:
             if setup.planar_capture == "on":
                 raise SSRError(f"fallback=planar: scene '{scene.name}' has no flat mesh to capture the reflection of")
             return None
-        if setup.planar_capture == "auto" and \
-                reflector_share(passes, found[1], setup.max_roughness) < AUTO_MIN_REFLECTOR_SHARE:
+        if setup.planar_capture == "auto" and found[2] < AUTO_MIN_REFLECTOR_SHARE:
             return None
+        found = found[:2]
         size = setup.rendered_size
         key = (capture_key(scene, with_camera=True), size, setup.samples, setup.engine, setup.capture_engine, found[1])
         if self._draws(setup):
