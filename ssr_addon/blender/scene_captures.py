@@ -24,7 +24,8 @@ import bpy
 import numpy as np
 from mathutils import Matrix, Vector
 
-from ..core.captures import CubeCapture, PlanarCapture, cube_atlas, cube_face_projection, cube_face_views, mirror_matrix
+from ..core.captures import (PLANE_NORMAL_COS, PLANE_TOLERANCE_PX, CubeCapture, PlanarCapture, cube_atlas,
+                             cube_face_projection, cube_face_views, mirror_matrix, pixel_footprints)
 from ..core.errors import SSRError
 from ..core.inputs import BACKGROUND_DEPTH
 from .baselines import default_probe_placement, rendered_geometry
@@ -39,10 +40,6 @@ AUTO_MIN_REFLECTOR_SHARE = 0.05
 # holding most of the frame's reflected light.
 REFLECTOR_THINNESS = 0.02
 REFLECTOR_CANDIDATES = 4
-# Pixels this close to the plane, relative to their depth, with a normal this close to its,
-# are the reflector's.
-PLANE_TOLERANCE = 2e-3
-PLANE_NORMAL_COS = 0.99
 # capture_engine=cycles: samples per pixel of a capture, denoised.
 CYCLES_CAPTURE_SAMPLES = 32
 _FLIP_X = np.diag((-1.0, 1.0, 1.0, 1.0))
@@ -102,7 +99,8 @@ def reflector_share(passes, plane, max_roughness):
         return 0.0
     points = world_positions(passes.depth, passes.view_matrix, passes.projection_matrix)
     normal = np.asarray(plane[:3])
-    on_plane = (np.abs(points @ normal + plane[3]) <= PLANE_TOLERANCE * np.maximum(passes.depth, 1.0)) \
+    footprint = pixel_footprints(np.minimum(passes.depth, 1e6), passes.projection_matrix)
+    on_plane = (np.abs(points @ normal + plane[3]) <= PLANE_TOLERANCE_PX * footprint) \
         & (passes.normal @ normal >= PLANE_NORMAL_COS)
     return float(weight[on_plane & traced].sum() / total)
 

@@ -9,6 +9,21 @@ from .gpu_backend import upload
 from .inputs import BACKGROUND_DEPTH
 
 
+# Rays from pixels this close to the reflector's plane, in pixel footprints at their depth, whose
+# normal is this close to its, leave the reflector (planar_trace.glsl, and the reflector's share
+# of a frame: blender.scene_captures.reflector_share).
+PLANE_TOLERANCE_PX = 2.0
+PLANE_NORMAL_COS = 0.99
+
+
+def pixel_footprints(depth, projection_matrix):
+    """(H, W) size of one pixel, in view units, at each pixel's DEPTH (common_lib.glsl's
+    pixel_footprint)."""
+    projection = np.asarray(projection_matrix, np.float64)
+    orthographic = projection[3, 3] == 1.0
+    return 2.0 / (projection[1, 1] * depth.shape[0]) * (1.0 if orthographic else depth)
+
+
 @dataclass
 class PlanarCapture:
     """The scene as a large flat reflector (a floor, a mirror, water) shows it: rendered from

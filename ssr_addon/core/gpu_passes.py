@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .captures import PLANE_NORMAL_COS, PLANE_TOLERANCE_PX
 from .frame_sequence import MAX_ITERATIONS
 from .ggx import MIN_ALPHA
 from .gpu_backend import FullscreenPass, empty_texture
@@ -221,7 +222,9 @@ PLANAR_TRACE = GPUPass(
                      "behind what it shows, 7 escaped; 0 no ray")),))),
     libraries=(*COMMON_LIBRARIES, "screen_ray_lib.glsl", "linear_march_lib.glsl", "ggx_lib.glsl",
                "history_lib.glsl"),
-    defines=_CAPTURE_SCREEN, runs=lambda frame: frame.inputs.capture is not None,
+    defines=(*_CAPTURE_SCREEN, ("PLANE_TOLERANCE_PX", repr(PLANE_TOLERANCE_PX)),
+             ("PLANE_NORMAL_COS", repr(PLANE_NORMAL_COS))),
+    runs=lambda frame: frame.inputs.capture is not None,
     skipped=(("ray_outcome", "ray_stats"),), placeholders=(("planar_hit", "ray_hit"),))
 CUBE_TRACE = GPUPass(
     "cube_trace", "cube_trace.glsl", stage="cube",

@@ -19,10 +19,8 @@
  *          ray_outcome_img = (hit distance, 0, 0, RAY_OUTCOME_*: PLANAR where it hit, the
  *                            screen trace's outcome elsewhere). */
 
-/* Rays from this close to the plane, in frame pixels at their depth, leave the reflector. */
-#define PLANE_TOLERANCE_PX 2.0
-/* A pixel whose normal is this close to the plane's is the reflector, not something on it. */
-#define PLANE_NORMAL_COS 0.99
+/* PLANE_TOLERANCE_PX and PLANE_NORMAL_COS (core.captures, defined with this pass): rays from
+ * pixels that close to the plane, with a normal that close to its, leave the reflector. */
 
 vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float solid_angle)
 {
