@@ -6,7 +6,6 @@ RenderRequest, never bpy.context.
 """
 from dataclasses import dataclass
 
-import bpy
 import numpy as np
 
 from ..blender.colour_management import write_display_png
@@ -14,7 +13,6 @@ from ..blender.gpu_context import ensure_backend
 from ..blender.scene_captures import SceneCaptures
 from ..blender.render_passes import render_passes
 from ..blender.render_setup import decide_render
-from ..blender.viewport_capture import headless_viewport
 from ..core.chain import ChainState, run_chain
 from ..core.errors import SSRError
 from ..core.gpu_backend import StageTimer, download
@@ -39,15 +37,16 @@ class FrameImages:
 
 class FrameFallbacks:
     """The fallback hierarchy's state over a run of frames (a still is a run of one): the scene
-    captures (blender.scene_captures.SceneCaptures, drawn through the file's 3D View where it
-    has one) and, under fallback=auto, whether the run has a guard band and a depth cube map.
+    captures (blender.scene_captures.SceneCaptures) and, under fallback=auto, whether the run
+    has a guard band and a depth cube map.
     The run's first frame decides those from what its rays left unresolved, and is rendered
     again with them where it needs either."""
 
     def __init__(self):
-        # Headless, the file's 3D View is nobody's: captures draw through it. In Blender's
-        # window it is the artist's, whose shading they would switch: they render instead.
-        self.captures = SceneCaptures(headless_viewport() if bpy.app.background else None)
+        # Rendered, not drawn through a 3D View: between a frame's renders EEVEE compiles its
+        # shaders again for each, so a drawn capture made the next render 15 s slower
+        # (lab/capture_cost.py). And in Blender's window the 3D View is the artist's.
+        self.captures = SceneCaptures()
         self.guard_band = self.cube = None  # undecided until the first frame under auto
 
     def decide(self, unresolved):

@@ -33,6 +33,7 @@ class ChainState:
     sequence: FrameSequence = field(default_factory=FrameSequence)
     previous_world_to_clip: np.ndarray = None
     previous_radiance_tx: object = None   # the last frame's lit scene: what its reflections showed
+    previous_captures: tuple = None       # the last frame's (planar, cube) captures: kept, or captured afresh
     convergence: ConvergenceCheck = field(default_factory=ConvergenceCheck)  # holds the last check's reflection
 
     @classmethod
@@ -53,6 +54,7 @@ class ChainState:
     def _forget_last_frame(self):
         self.previous_world_to_clip = None
         self.previous_radiance_tx = None
+        self.previous_captures = None
         self.convergence.forget()
 
 
@@ -85,6 +87,7 @@ class FrameContext:
     color_rects: list = None
     capture_color_rects: list = ()  # of the planar capture's colour pyramid
     cube_color_rects: list = ()     # of the cube's
+    captures_changed: bool = False  # the captures are not those of the frame the history is from
 
     @property
     def resolve_size(self):
@@ -142,6 +145,7 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         **_cube_params(inputs.cube, frame.cube_color_rects, settings),
         "capture_levels": (CAPTURE_LEVELS["planar"] if inputs.capture is not None else 0)
                           | (CAPTURE_LEVELS["cube"] if inputs.cube is not None else 0),
+        "captures_changed": frame.captures_changed,
     })
 
 
@@ -200,6 +204,11 @@ class FrameRun:
                                                     None if settings.use_cone_filter else 1)
         lap(timer, gpu_passes.COLOR_DOWNSAMPLE.stage, color_tx)
         self.resources.update(hiz=hiz_tx, color=color_tx)
+        captures = (inputs.capture, inputs.cube)
+        previous = state.previous_captures or (None, None)
+        frame.captures_changed = any(capture is not None and capture is not before
+                                     for capture, before in zip(captures, previous))
+        state.previous_captures = captures
         if inputs.capture is not None:
             self.resources["capture_color"], frame.capture_color_rects = build_pyramid(
                 self.resources["capture_radiance"], gpu_passes.COLOR_DOWNSAMPLE, gpu_passes.PYRAMID_PACK, pool,

@@ -68,6 +68,7 @@ PARAMS_FIELDS = (
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
     ("int", "capture_levels", "CAPTURE_LEVEL_* bits of the captures that ran (resolve reads capture_hit_tx)"),
+    ("int", "captures_changed", "the captures are not the last frame's: what they show moved"),
     ("mat4", "capture_world_to_view", "the planar capture's camera: the frame's mirrored in its plane"),
     ("mat4", "capture_view_to_clip", "its projection"),
     ("vec4", "capture_plane", "the reflector's plane in world space, n.x + d, n towards what it reflects"),
@@ -168,7 +169,9 @@ class Std140Struct:
                     start = offset + index * struct.words
                     words[start:start + struct.words] = struct.pack(element)
             elif base == "mat4":  # column-major, each matrix of an array in turn
-                as_float[offset:offset + size] = np.swapaxes(np.asarray(value, np.float64), -1, -2).ravel()
+                matrices = np.asarray(value, np.float64)
+                as_float[offset:offset + size] = np.swapaxes(matrices, -1, -2).ravel() if matrices.ndim >= 2 \
+                    else matrices
             elif base == "int":
                 as_int[offset] = int(value)
             elif base == "uint":

@@ -9,7 +9,8 @@
  *          (iterations the temporal history holds, history_lib.glsl), capture_hit_tx
  *          (what the captures found for each ray, read where params.capture_levels has any).
  * Outputs: resolved_img     = (reflected radiance * confidence, confidence),
- *          reflection_hit_img = (mean hit distance, mean hit uv, 0), weighted as the radiance.
+ *          reflection_hit_img = (mean hit distance, mean hit uv of the screen's hits, weighted as the
+ *                               radiance; the captures' share of the reflection).
  *
  * Each pixel reuses the rays of its own and neighbouring traced texels with the
  * ratio estimator  L = sum(L_k f_s(l_k) cos / p_k) / sum(f_s(l_k) cos / p_k),
@@ -88,7 +89,8 @@ void main()
   float n_dot_v = dot(normal, to_eye);
 
   vec3 radiance_sum = vec3(0.0);
-  float weight_sum = 0.0, hit_weight_sum = 0.0, screen_weight_sum = 0.0, distance_sum = 0.0;
+  float weight_sum = 0.0, hit_weight_sum = 0.0, screen_weight_sum = 0.0, capture_weight_sum = 0.0;
+  float distance_sum = 0.0;
   vec2 hit_uv_sum = vec2(0.0);
   for (int k = 0; k < ray_count; k++) {
     ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
@@ -129,6 +131,7 @@ void main()
       float hit_weight = weight * captured.a;
       radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(captured.rgb) : captured.rgb);
       hit_weight_sum += hit_weight;
+      capture_weight_sum += hit_weight;
     }
   }
   /* Written so that NaN, should any reach here, counts as "no reflection". */
@@ -147,4 +150,5 @@ void main()
   resolved_img = vec4(radiance * confidence, confidence);
   /* The screen's hits only: a capture's have no place on screen to reproject. */
   reflection_hit_img = screen_weight_sum > 0.0 ? vec4(distance_sum, hit_uv_sum, 0.0) / screen_weight_sum : vec4(0.0);
+  reflection_hit_img.w = capture_weight_sum / hit_weight_sum;
 }

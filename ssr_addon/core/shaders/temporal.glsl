@@ -5,7 +5,7 @@
  *   x_prev = P_{t-1} V_{t-1} x_world.
  *
  * Inputs:  spatial_tx (this frame's, spatially filtered, premultiplied), reflection_hit_tx
- *          (mean hit distance and uv), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
+ *          (mean hit distance and uv, the captures' share), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
  *          radiance_tx and previous_radiance_tx (the lit scene now and in the history's frame),
  *          history_tx (last output: premultiplied radiance, confidence), history_record_tx (its record).
  * Outputs: reflection_img (premultiplied radiance, confidence),
@@ -134,7 +134,11 @@ void main()
   if (params.history_mode == HISTORY_MODE_ANIMATION && camera_held_it && !hit_light_unchanged(hit)) {
     return;
   }
-  bool holds_still = params.history_mode == HISTORY_MODE_STILL || (camera_held_it && max(motion, history_record.w) < 0.01);
+  /* A reflection the captures resolved has no hit on screen whose motion shows: where they were
+   * captured afresh (something in them moved), it is clipped like a moving one. */
+  bool captures_moved = params.captures_changed != 0 && hit.w > 0.0;
+  bool holds_still = params.history_mode == HISTORY_MODE_STILL ||
+                     (camera_held_it && max(motion, history_record.w) < 0.01 && !captures_moved);
   if (!holds_still) {
     history = variance_clip(pixel, history);
   }
