@@ -9,11 +9,13 @@ flipped back (and its lens shift with it): a camera like any other, whose matric
 traces with. The reflector is found from the scene (the largest flat mesh, as the planar
 baseline does) and kept only where the frame shows it reflecting (reflector_share).
 
-Captures are drawn through a 3D View (GPUOffScreen.draw_view3d): no fresh EEVEE instance,
-Combined at the frame's samples, the data passes at one. At 320x180 that is 0.5 s against
-a render's 7-10 s, and as close to a 64-sample render as a 16-sample render is
-(lab/capture_cost.py, docs/measurements.md). Where there is no 3D View, or the frame is a
-Cycles render, the capture is a render of its own.
+A capture is a render of its own (render_planar_capture, render_cube_capture), or drawn
+through a 3D View (GPUOffScreen.draw_view3d: Combined at the frame's samples, the data passes
+at one), which alone is several times cheaper and as close to a 64-sample render as a
+16-sample render is. But between the frame's renders the two pipelines compile EEVEE's
+shaders again for each other: a render after a drawn capture took 15 s more at 160x90
+(lab/capture_cost.py, docs/measurements.md), so runs render their captures (SceneCaptures
+without a viewport) and drawing is for a view that only draws (the live view).
 
 The depth cube map (CubeCapture): six 90-degree faces from where the cubemap baseline puts its
 probe, each face's radiance and axis distance.
