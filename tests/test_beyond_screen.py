@@ -98,3 +98,15 @@ def test_auto_resolves_what_leaves_the_frame(render_scene):
     floor = passes["Normal.Z"] > 0.9
     assert (passes["SSR Resolved By.V"][floor] == RAY_OUTCOMES["planar"]).mean() > 0.8
     assert auto.final()[floor].mean() > 2.0 * off.final()[floor].mean(), "the floor mirrors the glowing ceiling"
+
+
+def test_a_static_shot_captures_once(tmp_path):
+    """Over a still camera and a still set, each capture is made on the first frame and kept:
+    and the planar capture's set-up (its camera, the floor hidden) never reaches the cube's,
+    which a second frame would otherwise capture afresh from another centre."""
+    import json
+    from conftest import run_cli
+    run_cli("render", os.path.join(SCENES, "hidden_underside.py"), "--out", tmp_path, "--resolution", "64x36",
+            "--samples", "4", "--frames", "1-3", "--set", "fallback=planar,cube")
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert [frame["captured"] for frame in report["frames"]] == [["planar", "cube"], [], []]

@@ -109,7 +109,9 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
                           cube_size=settings.cube_size if cube else 0, capture_engine=settings.capture_engine)
     if setup.lamp_split.method == "analytic":
         timer.lap("lamp_split")  # reading the scene's lights; the chain adds its pass
+    made_before = len(fallbacks.captures.made)
     passes = render_passes(scene, setup, timer, fallbacks.captures)
+    captured = fallbacks.captures.made[made_before:]
     timer.lap("render")  # reading the passes back
     if not use_ssr:
         return FrameImages(passes, passes.combined, read_layers(passes), {}), timer
@@ -122,7 +124,7 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
     crop = passes.crop
     layers = {name: crop_image(image, crop) for name, image in read_layers(passes, outputs).items()}
     passes = passes.cropped()
-    stats = chain_stats(outputs, passes, layers, settings)
+    stats = {**chain_stats(outputs, passes, layers, settings), "captured": captured}
     if levels is None and fallbacks.guard_band is None and fallbacks.decide(stats["unresolved"]):
         stats["render_again"] = True
     images = FrameImages(passes, crop_image(download(outputs["final"]), crop), layers, stats)

@@ -61,10 +61,10 @@ def render_passes(scene, setup, timer=None, captures=None):
         if captures is None and (setup.planar_capture != "off" or setup.cube_size):
             captures = SceneCaptures()  # for this frame alone, rendered
         if captures is not None:
-            passes.capture = captures.planar(scene, view_layer, setup, passes, folder, changes)
+            passes.capture = captures.planar(scene, view_layer, setup, passes, folder)
             if passes.capture is not None:
                 lap(timer, "planar_capture")
-            passes.cube = captures.cube(scene, view_layer, setup, folder, changes)
+            passes.cube = captures.cube(scene, view_layer, setup, folder)
             if passes.cube is not None:
                 lap(timer, "cube_capture")
     return passes

@@ -253,37 +253,40 @@ class SceneCaptures:
     def __init__(self, viewport=None):
         self.viewport = viewport
         self._kept = {}  # level: (key, capture)
+        self.made = []   # the levels captured afresh, in order, since the run began
         self._held = TemporaryChanges()
         if viewport is not None:
             viewport.hold_for_captures(self._held)
 
     def _reuse(self, level, key, make):
+        """The capture of LEVEL kept under KEY, or MAKE(changes) afresh: what MAKE changes (a
+        capture camera, hidden objects, the engine) is undone before anything else looks at
+        the scene, so one capture never sees another's set-up."""
         kept = self._kept.get(level)
         if kept is None or kept[0] != key:
-            kept = self._kept[level] = (key, make())
+            with TemporaryChanges() as changes:
+                kept = self._kept[level] = (key, make(changes))
+            self.made.append(level)
         return kept[1]
 
     def _draws(self, setup):
         return self.viewport is not None and setup.engine == "eevee" and setup.capture_engine == "eevee"
 
     @staticmethod
-    def _rendered(scene, setup, changes, render):
-        """RENDER() the capture with setup.capture_engine: Cycles at CYCLES_CAPTURE_SAMPLES,
+    def _use_capture_engine(scene, setup, changes):
+        """Through CHANGES, render with setup.capture_engine: Cycles at CYCLES_CAPTURE_SAMPLES,
         denoised, where it asks for Cycles."""
         if setup.capture_engine == "cycles" and scene.render.engine != "CYCLES":
-            with TemporaryChanges() as engine:
-                engine.set(scene.render, "engine", "CYCLES")
-                engine.set(scene.cycles, "samples", CYCLES_CAPTURE_SAMPLES)
-                engine.set(scene.cycles, "use_denoising", True)
-                engine.set(scene.cycles, "device", "CPU")
-                return render()
-        return render()
+            changes.set(scene.render, "engine", "CYCLES")
+            changes.set(scene.cycles, "samples", CYCLES_CAPTURE_SAMPLES)
+            changes.set(scene.cycles, "use_denoising", True)
+            changes.set(scene.cycles, "device", "CPU")
 
-    def planar(self, scene, view_layer, setup, passes, folder, changes):
+    def planar(self, scene, view_layer, setup, passes, folder):
         """The PlanarCapture SETUP asks for of the frame's PASSES, or None: with planar_capture
         auto, only where the main reflector holds AUTO_MIN_REFLECTOR_SHARE of the frame's
         reflected light; on, wherever the scene has a flat mesh. SCENE is set up for the frame's
-        render through CHANGES."""
+        render."""
         if setup.planar_capture == "off":
             return None
         found = find_reflector(scene, passes, setup.max_roughness)
@@ -297,22 +300,28 @@ class SceneCaptures:
         size = setup.rendered_size
         key = (capture_key(scene, with_camera=True), size, setup.samples, setup.engine, setup.capture_engine, found[1])
         if self._draws(setup):
-            return self._reuse("planar", key, lambda: draw_planar_capture(
+            return self._reuse("planar", key, lambda changes: draw_planar_capture(
                 scene, view_layer, self.viewport, size, setup.samples, *found, changes))
-        return self._reuse("planar", key, lambda: self._rendered(
-            scene, setup, changes, lambda: render_planar_capture(scene, size, *found, folder, changes)))
 
-    def cube(self, scene, view_layer, setup, folder, changes):
+        def render(changes):
+            self._use_capture_engine(scene, setup, changes)
+            return render_planar_capture(scene, size, *found, folder, changes)
+        return self._reuse("planar", key, render)
+
+    def cube(self, scene, view_layer, setup, folder):
         """The CubeCapture SETUP asks for (setup.cube_size: the pixels of a face's side; 0: none)."""
         if not setup.cube_size:
             return None
         key = (capture_key(scene, with_camera=False), setup.cube_size, setup.samples, setup.engine,
                setup.capture_engine)
         if self._draws(setup):
-            return self._reuse("cube", key, lambda: draw_cube_capture(scene, view_layer, self.viewport,
-                                                                      setup.cube_size, setup.samples))
-        return self._reuse("cube", key, lambda: self._rendered(
-            scene, setup, changes, lambda: render_cube_capture(scene, setup.cube_size, folder, changes)))
+            return self._reuse("cube", key, lambda changes: draw_cube_capture(scene, view_layer, self.viewport,
+                                                                              setup.cube_size, setup.samples))
+
+        def render(changes):
+            self._use_capture_engine(scene, setup, changes)
+            return render_cube_capture(scene, setup.cube_size, folder, changes)
+        return self._reuse("cube", key, render)
 
     def release(self):
         self._held.restore()
