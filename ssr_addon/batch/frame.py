@@ -43,9 +43,9 @@ class FrameFallbacks:
     again with them where it needs either."""
 
     def __init__(self):
-        # Rendered, not drawn through a 3D View: between a frame's renders EEVEE compiles its
-        # shaders again for each, so a drawn capture made the next render 15 s slower
-        # (lab/capture_cost.py). And in Blender's window the 3D View is the artist's.
+        # Rendered, not drawn through a 3D View: drawn between a frame's renders, they made
+        # those renders slower (blender.scene_captures). And in Blender's window the 3D View is
+        # the artist's.
         self.captures = SceneCaptures()
         self.guard_band = self.cube = None  # undecided until the first frame under auto
 

@@ -11,11 +11,12 @@ baseline does) and kept only where the frame shows it reflecting (reflector_shar
 
 A capture is a render of its own (render_planar_capture, render_cube_capture), or drawn
 through a 3D View (GPUOffScreen.draw_view3d: Combined at the frame's samples, the data passes
-at one), which alone is several times cheaper and as close to a 64-sample render as a
-16-sample render is. But between the frame's renders the two pipelines compile EEVEE's
-shaders again for each other: a render after a drawn capture took 15 s more at 160x90
-(lab/capture_cost.py, docs/measurements.md), so runs render their captures (SceneCaptures
-without a viewport) and drawing is for a view that only draws (the live view).
+at one), as close to a 64-sample render as a 16-sample render is, and for the cube's six faces
+several times cheaper (lab/capture_cost.py, docs/measurements.md). Between the frame's renders,
+though, one run of three frames rendered each frame 13 s slower after drawn captures (the
+render and viewport pipelines compiling EEVEE's shaders again for each other), where the lab's
+one render after a draw was 5 % slower: until that is settled, runs render their captures
+(SceneCaptures without a viewport).
 
 The depth cube map (CubeCapture): six 90-degree faces from where the cubemap baseline puts its
 probe, each face's radiance and axis distance.
