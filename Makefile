@@ -46,7 +46,7 @@ bench: $(STAMP)
 # What each stage buys: the balanced preset with each stage switched off in turn.
 bench-stages: $(STAMP)
 	$(PY) -m lab bench --scenes mirror_floor wet_street --resolution 160x90 --out docs/bench-stages \
-		--contenders 'ssr balanced' 'ssr *=off' --no-stability
+		--contenders 'ssr balanced fallback=off' 'ssr *=off' --no-stability
 
 # Where the balanced preset's error comes from: the chain, EEVEE's frame or screen space itself.
 bench-error: $(STAMP)
