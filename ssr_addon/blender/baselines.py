@@ -50,7 +50,6 @@ COMPARISON_MODES = (
 BASELINES = tuple(mode.lower() for mode, _, _ in COMPARISON_MODES)
 
 _GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT"}
-_FLATNESS = 1e-4  # a plane's thickness relative to its size
 _SLAB_THINNESS = 0.02  # a floor or ceiling slab's height relative to its width
 
 
@@ -194,12 +193,13 @@ def _box_corners(low, high):
 
 
 def _flat_extent(obj):
-    """Half sizes (x, y) of a mesh flat along its local Z axis, in its local units, or None."""
+    """Half sizes (x, y) of a mesh flat along its local Z axis (a plane, or a slab: a floor of
+    some thickness), in its local units, or None."""
     if obj.type != "MESH":
         return None
     low, high = Vector(map(min, zip(*obj.bound_box))), Vector(map(max, zip(*obj.bound_box)))
     size = high - low
-    if size.x <= 0 or size.y <= 0 or size.z > _FLATNESS * max(size.x, size.y):
+    if size.x <= 0 or size.y <= 0 or size.z > _SLAB_THINNESS * max(size.x, size.y):
         return None
     return size.x / 2, size.y / 2
 
@@ -225,7 +225,11 @@ def _add_plane_probe(scene, changes, mirror):
     low = Vector(map(min, zip(*mirror.bound_box)))
     high = Vector(map(max, zip(*mirror.bound_box)))
     probe = _new_probe(scene, changes, "SSR Mirror Plane", "PLANE")
-    probe.location = mirror.matrix_world @ ((low + high) / 2)
+    centre = (low + high) / 2
+    # On a slab, the face towards the camera (its top, for a floor) is the mirror.
+    camera_z = (mirror.matrix_world.inverted() @ scene.camera.matrix_world.translation).z
+    centre.z = high.z if camera_z >= centre.z else low.z
+    probe.location = mirror.matrix_world @ centre
     probe.rotation_mode = "QUATERNION"
     probe.rotation_quaternion = rotation
     # The probe spans the mirror; a unit Z scale keeps its influence distance in scene units.
