@@ -199,7 +199,8 @@ def _flat_extent(obj):
         return None
     low, high = Vector(map(min, zip(*obj.bound_box))), Vector(map(max, zip(*obj.bound_box)))
     size = high - low
-    if size.x <= 0 or size.y <= 0 or size.z > _SLAB_THINNESS * max(size.x, size.y):
+    scaled = Vector(abs(length * scale) for length, scale in zip(size, obj.matrix_world.to_scale()))
+    if size.x <= 0 or size.y <= 0 or scaled.z > _SLAB_THINNESS * max(scaled.x, scaled.y):
         return None
     return size.x / 2, size.y / 2
 
