@@ -23,8 +23,9 @@
  * hits' colours are averaged tone-mapped, c / (1 + max(c)), and mapped back, so
  * one bright ray among dim ones cannot dominate a pixel. */
 
-/* Neighbours whose ray left a surface turned further than this from this pixel's are not reused. */
-#define SAME_SURFACE_COS 0.9
+/* Neighbours whose ray left a surface turned further than this from this pixel's (78 degrees:
+ * another surface, a wall beside the floor, not the curve of this one) are not reused. */
+#define SAME_SURFACE_COS 0.2
 
 vec3 tonemap(vec3 color)
 {
