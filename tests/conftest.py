@@ -24,19 +24,19 @@ def gpu_backend():
     ensure_backend()
 
 
-def run_cli(*args, check=True, package="ssr_addon"):
+def run_cli(*args, check=True, package="ssr_addon", timeout=600):
     """Run `python -m ssr_addon ARGS` (or PACKAGE: the lab's) in a fresh process (scene loading
     replaces the open file)."""
     result = subprocess.run([sys.executable, "-m", package, *map(str, args)], cwd=REPO,
-                            capture_output=True, text=True, timeout=600)
+                            capture_output=True, text=True, timeout=timeout)
     if check and result.returncode != 0:
         raise AssertionError(f"CLI failed ({result.returncode}): {result.stderr[-2000:]}")
     return result
 
 
-def run_lab(*args, check=True):
+def run_lab(*args, check=True, timeout=600):
     """Run `python -m lab ARGS` in a fresh process."""
-    return run_cli(*args, check=check, package="lab")
+    return run_cli(*args, check=check, package="lab", timeout=timeout)
 
 
 def read_exr(path):

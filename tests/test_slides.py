@@ -20,7 +20,7 @@ pytestmark = [pytest.mark.blender, pytest.mark.slow]
 @pytest.fixture(scope="module")
 def slides(tmp_path_factory):
     out = tmp_path_factory.mktemp("slides")
-    run_lab("slides", "--out", out, "--quick")
+    run_lab("slides", "--out", out, "--quick", timeout=1800)  # every section, the captures' renders too
     return out, json.loads((out / "slides.json").read_text()), (out / "index.html").read_text()
 
 
