@@ -48,10 +48,10 @@ def stability_cases():
 def energy_excess(final, passes, brightest):
     """How far the frame exceeds the energy bound, as a fraction of the brightest radiance B.
 
-    The composite computes final = combined + FG * (c R) - c * s * I, with c R
-    the premultiplied "SSR Reflection" layer (c the confidence), s the specular
+    The composite computes final = combined + FG * (c R) - c * min(s * I, combined), with
+    c R the premultiplied "SSR Reflection" layer (c the confidence), s the specular
     colour and I the indirect specular (probe/world) light; so the light SSR
-    put in is added = final - combined + c s I = FG * c R (before the
+    put in is added = final - combined + c min(s I, combined) = FG * c R (before the
     composite's clamp at 0). SSR only fetches, filters and accumulates radiance
     that this or an earlier frame showed, so R <= B (per channel, B the
     brightest Combined pixel so far), and a surface reflects at most what
@@ -60,8 +60,11 @@ def energy_excess(final, passes, brightest):
     At most ENERGY_TOLERANCE means it holds (the composite runs in 32-bit floats).
     """
     confidence = passes["SSR Confidence.V"][..., None]
-    probe = layer_rgb(passes, "Specular Color") * layer_rgb(passes, "Specular Indirect")
-    added = final - layer_rgb(passes, "Combined") + confidence * probe
+    combined = layer_rgb(passes, "Combined")
+    # The composite takes out no more probe reflection than the pixel's image holds.
+    probe = np.minimum(layer_rgb(passes, "Specular Color") * layer_rgb(passes, "Specular Indirect"),
+                       np.maximum(combined, 0.0))
+    added = final - combined + confidence * probe
     premultiplied = layer_rgb(passes, "SSR Reflection")
     excesses = (premultiplied - confidence * brightest, added - premultiplied, -added)
     return float(max((excess / np.maximum(brightest, 1e-6)).max() for excess in excesses))
