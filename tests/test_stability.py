@@ -57,9 +57,10 @@ def evaluated(render_scene):
     def evaluate(case, *extra):
         if (case, extra) not in cache:
             ours = ssr_run(render_scene, case, *extra)
+            seen = {entry["frame"]: np.array(entry["brightest_seen"]) for entry in ours.report["frames"]}
             cache[case, extra] = bench.evaluate_case(
                 FRAMES, lambda frame: (ours.final(frame), ours.passes(frame)),
-                reference_frames(render_scene, case))
+                reference_frames(render_scene, case), seen.get)
         return cache[case, extra]
     return evaluate
 

@@ -1,6 +1,7 @@
 """Stability cases (test_scenes/stability_*.py): energy, seam, flicker and ghosting measurements, asserted by
 tests/test_stability.py, and running every case for the bench."""
 import ast
+import json
 import os
 from dataclasses import replace
 
@@ -132,12 +133,14 @@ def relative_flicker(shown, level):
     return float(np.abs(np.diff(shown, axis=0)).mean() / level) if level > 1e-6 else None
 
 
-def evaluate_case(frames, ssr_frame, reference_frame):
+def evaluate_case(frames, ssr_frame, reference_frame, brightest_seen=None):
     """Per-frame stability measurements of one case.
 
     ssr_frame(frame) -> (final RGB, passes channels) of our render;
     reference_frame(frame) -> (reference RGB, reflective mask). The passes'
     Combined layer is the probe/world fallback (the same EEVEE render, no SSR).
+    brightest_seen(frame) -> the brightest light the frame's rays could read beyond its
+    Combined layer (its guard band, its captures: the report's), or None.
     """
     result = {"frames": list(frames), "finite": True, "energy_excess": [], "seam": [],
               "flip_ssr": [], "flip_fallback": [], "shown_reflections": [], "image_levels": [],
@@ -149,6 +152,8 @@ def evaluate_case(frames, ssr_frame, reference_frame):
         result["finite"] &= bool(np.isfinite(final).all() and all(np.isfinite(c).all() for c in passes.values()))
         combined = layer_rgb(passes, "Combined")
         current = combined.reshape(-1, 3).max(axis=0)
+        if brightest_seen is not None:
+            current = np.maximum(current, brightest_seen(frame))
         brightest = current if brightest is None else np.maximum(brightest, current)
         result["energy_excess"].append(energy_excess(final, passes, brightest))
         result["seam"].append(seam_strength(final, passes, reference, mask))
@@ -208,7 +213,11 @@ def run_stability(options, work_dir, log=print):
                 run_render(scene, path, RenderRequest(out_dir=folder, method="ssr", resolution=options.resolution,
                                                       frames=STABILITY_FRAMES, samples=options.eevee_samples,
                                                       settings=settings), log=lambda _: None)
-                measured[settings] = evaluate_case(frames, render_folder_frame(folder), reference_frame)
+                with open(os.path.join(folder, "report.json"), encoding="utf-8") as stream:
+                    seen = {entry["frame"]: np.array(entry.get("brightest_seen", [0.0, 0.0, 0.0]))
+                            for entry in json.load(stream)["frames"]}
+                measured[settings] = evaluate_case(frames, render_folder_frame(folder), reference_frame,
+                                                   seen.get)
             return measured[settings]
 
         default = measure(ChainSettings())

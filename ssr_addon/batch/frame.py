@@ -122,9 +122,14 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
         state.begin_frame(scene.frame_current)
     outputs = run_chain(inputs, settings, state, timer)
     crop = passes.crop
+    # The brightest light the frame's rays could read: its whole render (guard band included)
+    # and the captures', per channel (an energy bound's yardstick).
+    seen = [passes.combined] + [capture.radiance for capture in (passes.capture, passes.cube) if capture is not None]
+    brightest_seen = np.max([image[..., :3].reshape(-1, 3).max(axis=0) for image in seen], axis=0)
     layers = {name: crop_image(image, crop) for name, image in read_layers(passes, outputs).items()}
     passes = passes.cropped()
-    stats = {**chain_stats(outputs, passes, layers, settings), "captured": captured}
+    stats = {**chain_stats(outputs, passes, layers, settings), "captured": captured,
+             "brightest_seen": [round(float(value), 6) for value in brightest_seen]}
     if levels is None and fallbacks.guard_band is None and fallbacks.decide(stats["unresolved"]):
         stats["render_again"] = True
     images = FrameImages(passes, crop_image(download(outputs["final"]), crop), layers, stats)
