@@ -100,9 +100,10 @@ def test_no_hard_seam_where_ssr_fades_into_the_fallback(evaluated, case):
 
 
 def test_seam_measure_sees_a_one_pixel_cut(render_scene):
-    """The edge-cutoff frame with its border fade replaced by a one-pixel cut must read as a seam."""
+    """The edge-cutoff frame with its border fade replaced by a one-pixel cut must read as a seam.
+    Screen space alone: a guard band moves the fade out of the frame."""
     case, frame = "stability_edge_cutoff", FRAMES[0]
-    ours = ssr_run(render_scene, case)
+    ours = ssr_run(render_scene, case, "--set", "fallback=off")
     final, passes = ours.final(frame), ours.passes(frame)
     reference, mask = reference_frames(render_scene, case)(frame)
     confidence = passes["SSR Confidence.V"]
