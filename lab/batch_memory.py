@@ -15,7 +15,7 @@ import tempfile
 
 from ssr_addon.batch import frame as batch_frame
 from ssr_addon.batch.cli import ArgumentParser
-from ssr_addon.batch.frame import render_frame, write_frame
+from ssr_addon.batch.frame import FrameFallbacks, render_frame, write_frame
 from ssr_addon.batch.request import RenderRequest
 from ssr_addon.batch.run import return_large_buffers_to_the_system
 from ssr_addon.core.chain import ChainState
@@ -39,13 +39,13 @@ def main(argv):
     batch_frame.render_passes = lambda *args, **kwargs: passes
     return_large_buffers_to_the_system()  # as run_render does
     request = RenderRequest(out_dir="", settings=ChainSettings())
-    state = ChainState()
+    state, fallbacks = ChainState(), FrameFallbacks()  # as a run holds them, frame to frame
     checkpoints = {1, 60, 120, 240, arguments.frames}
     stage_ms = {}
     with tempfile.TemporaryDirectory() as folder:
         for frame in range(1, arguments.frames + 1):
             state.begin_frame(frame)
-            images, timer = render_frame(scene, request, state)
+            images, timer = render_frame(scene, request, state, fallbacks)
             if not arguments.no_write:
                 write_frame(folder, 1, images, scene)  # one frame's files, overwritten each time
                 timer.lap("write")

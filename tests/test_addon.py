@@ -406,6 +406,24 @@ def test_render_animation_writes_every_frame_in_background(addon, tmp_path):
 
 
 @pytest.mark.slow
+def test_render_animation_decides_the_fallbacks_once_and_keeps_history(addon, tmp_path):
+    """Under fallback=auto the shot's first frame chooses the levels and makes the captures;
+    a still set's later frames reuse them and lean on the history, as the command line's do."""
+    scene = _mirror_floor(*SMALL)
+    scene.ssr.comparison_mode = "SSR"
+    scene.ssr.cube_size = 16
+    scene.eevee.taa_samples = 2
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.filepath = str(tmp_path / "anim" / "shot_")
+    assert bpy.ops.render.ssr_render_animation() == {"FINISHED"}
+    with open(tmp_path / "anim" / "report.json", encoding="utf-8") as stream:
+        first, second = json.load(stream)["frames"]
+    assert first["captured"], "the mirror floor's sky lies above the frame: auto must capture"
+    assert second["captured"] == [] and "fallback_choice" not in second["stages_ms"]
+    assert second["iterations"] < first["iterations"]  # a frame with history settles at once
+
+
+@pytest.mark.slow
 def test_compositor_outputs_the_result_and_keeps_post_processing(addon, tmp_path):
     scene = _sculpture_scene()
     scene.render.engine = "BLENDER_WORKBENCH"  # the render itself is replaced: keep it cheap

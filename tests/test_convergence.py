@@ -148,6 +148,23 @@ def test_a_still_accumulates_until_converged(spheres):
     assert distance(adaptive) <= 1.5 * threshold
 
 
+def test_the_live_view_stops_where_the_render_stops(spheres):
+    """The live view and `preview` refine a view a few iterations per tick (ProgressiveView); on
+    the same passes they must end on the render's iterations and its image, whatever the ticks."""
+    from ssr_addon.core.gpu_backend import download
+    from ssr_addon.core.progressive import ProgressiveView
+    settings = ChainSettings()
+    rendered, rendered_iterations = still_reflection(spheres, settings)
+    refining = ProgressiveView(spheres[0], settings)
+    refining.step()
+    while not refining.done:
+        refining.step(max_iterations=3)  # ticks that cut across the render's doublings
+    live = download(refining.outputs["reflection"])[..., :3]
+    assert rendered_iterations > settings.accumulate_iterations, "the still must need a doubling"
+    assert refining.iterations == rendered_iterations
+    np.testing.assert_allclose(live, rendered, atol=1e-5)
+
+
 def test_convergence_check_measures_the_change_per_reflecting_tile(gpu_backend):
     """The GPU tile sums (convergence.ConvergenceCheck) on changes whose answer is known: every
     tile counts alike, pixels that reflect at neither check do not count, and there is nothing

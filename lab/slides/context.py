@@ -12,7 +12,7 @@ from ..bench.metrics import accuracy
 from ..bench.references import DEFAULT_CACHE, render_reference
 from ..bench.scenes import resolve_scene
 from ssr_addon.batch.compare import render_mode
-from ssr_addon.batch.frame import FrameImages, chain_stats
+from ssr_addon.batch.frame import FrameFallbacks, FrameImages, chain_stats
 from ssr_addon.batch.request import RenderRequest
 from ssr_addon.blender.lamp_renders import lamp_world_for_run
 from ssr_addon.blender.scene_io import load_scene
@@ -77,12 +77,12 @@ class SlideContext:
             self._warmed.add((name, mode))
         return self._timed_render(self.scene(name), mode, settings)
 
-    def _timed_render(self, scene, mode, settings, state=None):
+    def _timed_render(self, scene, mode, settings, state=None, fallbacks=None):
         """render_mode of SCENE's current frame at the run's size and samples, as a Render."""
         request = RenderRequest(out_dir=self.out_dir, resolution=self.resolution, samples=self.samples,
                                 settings=replace(ChainSettings(), **settings), time_stages=True)
         started = time.perf_counter()
-        images, timer = render_mode(scene, mode, request, state)
+        images, timer = render_mode(scene, mode, request, state, fallbacks)
         return Render(images, dict(timer.milliseconds), (time.perf_counter() - started) * 1000.0)
 
     def chain(self, name, frames=1, **settings):
@@ -115,12 +115,15 @@ class SlideContext:
         """Frames FRAMES of scene NAME's own animation in SSR mode, history carried from frame to
         frame as a batch render carries it; a Render per frame."""
         scene = self.scene(name)
-        state, renders = ChainState(), []
-        with lamp_world_for_run():
-            for frame in frames:
-                scene.frame_set(frame)
-                state.begin_frame(frame, scene.camera.name)
-                renders.append(self._timed_render(scene, "SSR", settings, state))
+        state, fallbacks, renders = ChainState(), FrameFallbacks(), []
+        try:
+            with lamp_world_for_run():
+                for frame in frames:
+                    scene.frame_set(frame)
+                    state.begin_frame(frame, scene.camera.name)
+                    renders.append(self._timed_render(scene, "SSR", settings, state, fallbacks))
+        finally:
+            fallbacks.release()
         return renders
 
     def error(self, name, render):

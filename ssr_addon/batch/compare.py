@@ -19,16 +19,17 @@ MODE_METHODS = {"SSR": "ssr", "CUBEMAP": "none", "PLANAR": "eevee-rt", "NONE": "
 WARM_UP_MIN = 16  # pixels: the smallest side of a warm-up render
 
 
-def render_mode(scene, mode, request, state=None, probe_object=None, mirror_object=None):
+def render_mode(scene, mode, request, state=None, fallbacks=None, probe_object=None, mirror_object=None):
     """Render the scene's current frame in comparison MODE (COMPARISON_MODES); returns render_frame's result.
 
-    STATE (a chain.ChainState) carries SSR's temporal history between the frames of an animation;
-    probe_object and mirror_object choose the baselines' cubemap centre and mirror plane.
+    STATE (a chain.ChainState) and FALLBACKS (frame.FrameFallbacks) carry SSR's temporal history
+    and fallback levels between the frames of an animation; probe_object and mirror_object choose
+    the baselines' cubemap centre and mirror plane.
     """
     require_camera(scene)
     with TemporaryChanges() as changes:
         apply_baseline(scene, mode.lower(), changes, probe_object=probe_object, mirror_object=mirror_object)
-        return render_frame(scene, replace(request, method=MODE_METHODS[mode]), state)
+        return render_frame(scene, replace(request, method=MODE_METHODS[mode]), state, fallbacks)
 
 
 def compare_modes(scene, request, probe_object=None, mirror_object=None):

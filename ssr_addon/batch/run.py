@@ -48,9 +48,9 @@ class RenderRun:
     `frames()` renders and writes the frames one at a time, yielding each
     (frame, images) once written, so a modal operator can step it; the report
     (also report.json, rewritten after every frame) is in `report`.
-    RENDER(scene, request, state) renders one frame (default render_frame, with the
-    run's FrameFallbacks: planar captures reused from frame to frame while nothing they
-    show moves, the guard band decided once; an operator's applies a comparison baseline). UNSAVED_CHANGES: the scene file on
+    RENDER(scene, request, state, fallbacks) renders one frame (default render_frame; an
+    operator's applies a comparison baseline first) with the run's FrameFallbacks: the levels
+    decided on the first frame, captures reused from frame to frame while nothing they show moves. UNSAVED_CHANGES: the scene file on
     disk is not what renders, so the run can never be resumed.
     """
 
@@ -92,7 +92,7 @@ class RenderRun:
         # history carries from frame to frame, reset on a jump in the range or a camera cut.
         state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
         fallbacks = FrameFallbacks() if request.method == "ssr" else None
-        render = self.render or functools.partial(render_frame, fallbacks=fallbacks)
+        render = functools.partial(self.render or render_frame, fallbacks=fallbacks)
         try:
             with lamp_world_for_run():
                 yield from self._render_frames(warmup, first_missing, state, render)

@@ -91,8 +91,8 @@ class RENDER_OT_ssr_render_animation(_ReportsErrors, bpy.types.Operator):
                           overwrite=scene.render.use_overwrite)
         choices = _baseline_choices(scene)
 
-        def render_in_mode(scene, request, state):
-            return render_mode(scene, mode, request, state, **choices)
+        def render_in_mode(scene, request, state, fallbacks):
+            return render_mode(scene, mode, request, state, fallbacks, **choices)
         run = RenderRun(scene, bpy.data.filepath, request, render=render_in_mode, unsaved_changes=bpy.data.is_dirty)
         for frame, images in run.frames():
             publish_result(images, scene.ssr.debug_view)
