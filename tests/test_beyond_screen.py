@@ -7,6 +7,7 @@ and upper walls lie above the frame (auto resolves what leaves the frame), and t
 touching the far wall (no dark seam).
 """
 import os
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -110,3 +111,31 @@ def test_a_static_shot_captures_once(tmp_path):
             "--samples", "4", "--frames", "1-3", "--set", "fallback=planar,cube")
     report = json.loads((tmp_path / "report.json").read_text())
     assert [frame["captured"] for frame in report["frames"]] == [["planar", "cube"], [], []]
+
+
+@pytest.mark.parametrize("builder", ["steel_room", "mirror_floor"])
+def test_auto_counts_the_light_whose_rays_would_reach_geometry(gpu_backend, tmp_path, builder):
+    """What auto captures for: in the closed room every ray that leaves the frame or passes
+    behind what it shows meets a wall, the ceiling or the floor; over the mirror floor the rays
+    that leave the frame go to the open sky (the cubes and the marker all stand in the frame),
+    which the world already shows, so auto captures nothing for them: no depth cube map, no
+    guard band, one render."""
+    from ssr_addon.batch.frame import AUTO_GUARD_BAND_SHARE, render_frame, unresolved_toward_geometry
+    from ssr_addon.batch.request import RenderRequest
+    from ssr_addon.blender.scene_io import load_scene
+    from ssr_addon.core.settings import ChainSettings
+    scene = load_scene(os.path.join(SCENES, f"{builder}.py"))
+    settings = ChainSettings(fallback="off")
+    request = RenderRequest(out_dir=str(tmp_path), resolution=(96, 54), samples=4, settings=settings)
+    images, _ = render_frame(scene, request)
+    missed = {reason: images.stats["unresolved"][reason] for reason in ("left_frame", "behind")}
+    assert missed["left_frame"] > 0.3
+    toward = unresolved_toward_geometry(scene, images.passes, images.layers, settings)
+    if builder == "steel_room":
+        for reason, share in missed.items():
+            assert toward[reason] == pytest.approx(share, abs=0.002), (reason, toward, missed)
+        return
+    assert toward["left_frame"] < 0.5 * AUTO_GUARD_BAND_SHARE, (toward, missed)
+    auto, timer = render_frame(scene, replace(request, settings=ChainSettings()))
+    # Rendered once: a guard band or a cube map would have rendered the frame again.
+    assert "cube" not in auto.stats["captured"] and "fallback_choice" not in timer.milliseconds

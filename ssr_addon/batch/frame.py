@@ -10,6 +10,7 @@ import numpy as np
 
 from ..blender.colour_management import write_display_png
 from ..blender.gpu_context import ensure_backend
+from ..blender.reflected_rays import reaching_geometry
 from ..blender.scene_captures import SceneCaptures
 from ..blender.render_passes import render_passes
 from ..blender.render_setup import decide_render
@@ -19,6 +20,7 @@ from ..core.gpu_backend import StageTimer, download
 from ..core.inputs import BACKGROUND_DEPTH, ChainInputs, crop_image
 from ..core.ray_outcomes import unresolved_shares
 from ..core.settings import fallback_levels
+from ..core.uniforms import RAY_OUTCOMES
 from ..core.layers import exr_channels, read_layers
 from .outputs import write_exr, write_rgba_exr, written_together
 from .request import RENDER_RAYTRACING
@@ -39,8 +41,9 @@ class FrameFallbacks:
     """The fallback hierarchy's state over a run of frames (a still is a run of one): the scene
     captures (blender.scene_captures.SceneCaptures) and, under fallback=auto, whether the run
     has a guard band and a depth cube map.
-    The run's first frame decides those from what its rays left unresolved, and is rendered
-    again with them where it needs either."""
+    The run's first frame decides those from what its rays left unresolved towards geometry
+    (a ray that leaves the frame for an open sky finds in the world what it would find in a
+    capture), and is rendered again with them where it needs either."""
 
     def __init__(self):
         # Rendered, not drawn through a 3D View: drawn between a frame's renders, they made
@@ -50,8 +53,8 @@ class FrameFallbacks:
         self.guard_band = self.cube = None  # undecided until the first frame under auto
 
     def decide(self, unresolved):
-        """Decide the levels from the first frame's unresolved shares (core.ray_outcomes);
-        True where the frame needs rendering again."""
+        """Decide the levels from the first frame's shares of light left unresolved towards
+        geometry (unresolved_toward_geometry); True where the frame needs rendering again."""
         self.guard_band = unresolved["left_frame"] >= AUTO_GUARD_BAND_SHARE
         self.cube = unresolved["left_frame"] + unresolved["behind"] >= AUTO_CUBE_SHARE
         return self.guard_band or self.cube
@@ -61,9 +64,9 @@ class FrameFallbacks:
 
 
 # Under fallback=auto a run gets a guard band when at least this share of its first frame's
-# reflected light was left to the probes and world by rays that left the frame, and a depth
-# cube map when at least AUTO_CUBE_SHARE was, by rays that left the frame or passed behind
-# what it shows (after the planar capture, where the frame has one).
+# reflected light was left to the probes and world by rays that left the frame towards
+# geometry, and a depth cube map when at least AUTO_CUBE_SHARE was, by rays that left the
+# frame or passed behind what it shows (after the planar capture, where the frame has one).
 AUTO_GUARD_BAND_SHARE = 0.02
 AUTO_CUBE_SHARE = 0.05
 
@@ -130,8 +133,9 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
     passes = passes.cropped()
     stats = {**chain_stats(outputs, passes, layers, settings), "captured": captured,
              "brightest_seen": [round(float(value), 6) for value in brightest_seen]}
-    if levels is None and fallbacks.guard_band is None and fallbacks.decide(stats["unresolved"]):
-        stats["render_again"] = True
+    if levels is None and fallbacks.guard_band is None:
+        stats["unresolved_toward_geometry"] = unresolved_toward_geometry(scene, passes, layers, settings)
+        stats["render_again"] = fallbacks.decide(stats["unresolved_toward_geometry"])
     images = FrameImages(passes, crop_image(download(outputs["final"]), crop), layers, stats)
     timer.lap("readback")
     return images, timer
@@ -143,12 +147,28 @@ def chain_stats(outputs, passes, layers, settings):
     world, by why (core.ray_outcomes)."""
     ray_class = download(outputs["ray_stats"])[..., 0]  # one entry per traced ray
     traced = np.count_nonzero(ray_class > 0)
-    traced_pixels = (passes.depth < BACKGROUND_DEPTH) & (passes.roughness <= settings.max_roughness)
     unresolved = unresolved_shares(layers["SSR Resolved By"][..., 0], layers["SSR Confidence"][..., 0],
-                                   passes.specular_color.mean(axis=-1), traced_pixels)
+                                   passes.specular_color.mean(axis=-1), traced_pixels(passes, settings))
     return {"iterations": outputs.iterations, "traced_rays": traced,
             "expensive_ray_fraction": round(np.count_nonzero(ray_class == 2) / traced, 4) if traced else 0.0,
             "unresolved": unresolved}
+
+
+def traced_pixels(passes, settings):
+    """(H, W) the pixels SSR traces from: geometry no rougher than max_roughness."""
+    return (passes.depth < BACKGROUND_DEPTH) & (passes.roughness <= settings.max_roughness)
+
+
+def unresolved_toward_geometry(scene, passes, layers, settings):
+    """unresolved_shares counting only the light whose rays left the frame or passed behind
+    what it shows towards an object of SCENE (blender.reflected_rays)."""
+    outcome, confidence = layers["SSR Resolved By"][..., 0], layers["SSR Confidence"][..., 0]
+    traced = traced_pixels(passes, settings)
+    candidates = traced & (confidence < 1.0) & np.isin(
+        np.rint(outcome), [RAY_OUTCOMES["left_frame"], RAY_OUTCOMES["behind"]])
+    shares = unresolved_shares(outcome, confidence, passes.specular_color.mean(axis=-1), traced,
+                               reaching_geometry(scene, passes, candidates))
+    return {reason: shares[reason] for reason in ("left_frame", "behind")}
 
 
 def write_frame(out_dir, frame, images, scene, prefix="frame_"):

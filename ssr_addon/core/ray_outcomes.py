@@ -10,13 +10,15 @@ from .uniforms import RAY_OUTCOMES
 MISS_REASONS = ("left_frame", "behind", "escaped", "faded")
 
 
-def unresolved_shares(outcome, confidence, specular_weight, traced):
+def unresolved_shares(outcome, confidence, specular_weight, traced, reaching=None):
     """{reason: share} of the frame's reflected light (SPECULAR_WEIGHT, (H, W), over the TRACED
     pixels) left to the probes and world, by MISS_REASONS: (1 - CONFIDENCE) of each pixel, by
-    the OUTCOME (RAY_OUTCOMES code) of its ray. Arrays at the frame's resolution."""
+    the OUTCOME (RAY_OUTCOMES code) of its ray. Arrays at the frame's resolution. REACHING
+    ((H, W) weights, optional) counts each pixel's that many times: 1 where its ray would
+    reach geometry, 0 where not (blender.reflected_rays)."""
     weight = np.where(traced, specular_weight, 0.0)
     total = weight.sum()
-    missing = weight * np.clip(1.0 - confidence, 0.0, 1.0)
+    missing = weight * np.clip(1.0 - confidence, 0.0, 1.0) * (1.0 if reaching is None else reaching)
     code = np.rint(outcome).astype(int)
     reasons = {reason: code == RAY_OUTCOMES[reason] for reason in MISS_REASONS[:-1]}
     reasons["faded"] = ~np.logical_or.reduce(list(reasons.values()))
