@@ -87,7 +87,7 @@ def test_no_dark_seam_where_the_floor_meets_the_wall(render_scene):
 
 def test_auto_resolves_what_leaves_the_frame(render_scene):
     """fallback=auto on the closed room: most of the floor's reflected light leaves the frame
-    (ceiling and upper walls above it); auto resolves nearly all of it (planar capture), where
+    (ceiling and upper walls above it); auto resolves nearly all of it (the planar capture), where
     screen space alone leaves it to the dark world, and the floor shows the glowing ceiling."""
     off = render_scene("steel_room", "ssr", "--resolution", "160x90", "--set", "fallback=off")
     auto = render_scene("steel_room", "ssr", "--resolution", "160x90")
@@ -97,7 +97,10 @@ def test_auto_resolves_what_leaves_the_frame(render_scene):
     assert sum(unresolved_auto.values()) < 0.1, unresolved_auto
     passes = auto.passes()
     floor = passes["Normal.Z"] > 0.9
-    assert (passes["SSR Resolved By.V"][floor] == RAY_OUTCOMES["planar"]).mean() > 0.8
+    resolved_by = passes["SSR Resolved By.V"][floor]
+    # The capture takes what the screen cannot see; where both see the same wall, the screen's stands.
+    assert (resolved_by == RAY_OUTCOMES["planar"]).mean() > 0.3
+    assert np.isin(resolved_by, [RAY_OUTCOMES["screen"], RAY_OUTCOMES["planar"]]).mean() > 0.9
     assert auto.final()[floor].mean() > 2.0 * off.final()[floor].mean(), "the floor mirrors the glowing ceiling"
 
 

@@ -8,8 +8,11 @@
  * floor) and what lies outside the frame. A ray that leaves the reflector is marched through
  * that view's depth like a screen ray (screen_ray_lib.glsl, linear_march_lib.glsl, with the
  * screen redefined below) and its hit read from the capture's colour pyramid as a cone, as the
- * resolve reads screen hits. Its hit replaces the screen's: the capture sees the hit from where
- * the reflection sees it.
+ * resolve reads screen hits. Its hit replaces the screen's, which may be a surface that only
+ * hides the true hit from the camera, unless both found the same surface: then the screen's
+ * stands, lit as the frame lights it (EEVEE lights the capture's view anew, and its
+ * screen-space light there differs: the walls of a corridor mirrored in its floor came out
+ * darker than the frame shows them).
  *
  * Inputs:  ray_hit_tx, ray_dir_tx, ray_stats_tx (the screen trace), depth_tx, normal_tx,
  *          roughness_tx, history_record_tx (the frame), capture_depth_tx, capture_normal_tx,
@@ -21,6 +24,26 @@
 
 /* PLANE_TOLERANCE_PX and PLANE_NORMAL_COS (core.captures, defined with this pass): rays from
  * pixels that close to the plane, with a normal that close to its, leave the reflector. */
+
+/* The screen and the capture found the same surface where their hits lie this many of the
+ * frame's pixel footprints apart along the ray, with normals this close. */
+#define SAME_HIT_PX 4.0
+#define SAME_HIT_NORMAL_COS 0.9
+
+bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
+                     float capture_distance, vec3 capture_world_normal)
+{
+  bool screen_hit_it = screen_outcome == float(RAY_OUTCOME_SCREEN) ||
+                       screen_outcome == float(RAY_OUTCOME_GUARD_BAND);
+  if (!screen_hit_it || !(screen_hit.w > 0.0)) {
+    return false;
+  }
+  float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
+  float hit_depth = -(view_origin + view_ray * screen_distance).z;
+  vec3 screen_normal = texelFetch(normal_tx, texel_at(screen_hit.xy * params.viewport_size), 0).xyz;
+  return abs(screen_distance - capture_distance) <= SAME_HIT_PX * pixel_footprint(hit_depth) &&
+         dot(normalize(screen_normal), normalize(capture_world_normal)) > SAME_HIT_NORMAL_COS;
+}
 
 vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float solid_angle)
 {
@@ -75,12 +98,16 @@ void main()
   }
   vec2 hit_px = ray_position_px(ray, t);
   ivec2 hit_texel = screen_texel_at(hit_px);
-  vec3 hit_normal = mat3(params.capture_world_to_view) * texelFetch(capture_normal_tx, hit_texel, 0).xyz;
+  vec3 hit_world_normal = texelFetch(capture_normal_tx, hit_texel, 0).xyz;
+  vec3 hit_normal = mat3(params.capture_world_to_view) * hit_world_normal;
   if (dot(hit_normal, capture_direction) > 0.0) {
     return; /* the far side of a surface */
   }
   vec3 hit_position = ray_view_position(ray, t);
   float hit_distance = distance(capture_origin, hit_position);
+  if (screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal)) {
+    return;
+  }
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
   float rays_averaged = float(params.resolve_samples) * accumulated_iterations(pixel);
   float solid_angle = ray_solid_angle(hit.z, rays_averaged, dot(view_normal(world_normal), -view_incident(uv)),
