@@ -8,6 +8,7 @@ pixels against the bench's cached Cycles reference, beside EEVEE's ray tracing:
   (scenes with a flat mesh);
 - ours: the balanced chain over EEVEE's passes, as the bench renders it (fallback=auto);
 - ours, screen alone: the same with fallback=off, screen space and nothing past it;
+- ours, Cycles captures: ours with capture_engine=cycles (the captures lit with indirect light);
 - correct screen space: EEVEE's frame with the reflection a correct screen-space method
   would show (lab.ideal_reflection: exact rays, EEVEE's Combined where the
   camera sees their hits, EEVEE's probe/world reflection elsewhere). No screen-space
@@ -40,23 +41,31 @@ from .ideal_reflection import ideal_screen_space, with_reflection
 GOAL = 0.8
 CYCLES_SAMPLES = 512
 CYCLES_SEED = 7  # not one of the reference's seeds, so its noise is not the reference's
-COLUMNS = ("eevee-rt", "eevee-rt-planar", "ours", "ours, screen alone", "correct screen space", "perfect fallback",
-           "correct reflections", "ours on Cycles' passes")
+COLUMNS = ("eevee-rt", "eevee-rt-planar", "ours", "ours, screen alone", "ours, Cycles captures",
+           "correct screen space", "perfect fallback", "correct reflections", "ours on Cycles' passes")
+# The columns whose captures are costed: the captures' stages (and auto's choice), per frame render.
+CAPTURE_STAGES = ("fallback_choice", "planar_capture", "cube_capture")
+COSTED = ("ours", "ours, Cycles captures")
 
 
 def measure(scene_name, frame_number, resolution, cache):
-    """{column: FLIP on the reflective pixels} of one scene's FRAME_NUMBER-th frame."""
+    """({column: FLIP on the reflective pixels}, {COSTED column: its captures' milliseconds as a
+    multiple of the frame's render}) of one scene's FRAME_NUMBER-th frame."""
     path = resolve_scene(scene_name)
     scene = load_scene(path)
     frame = scene.frame_current + frame_number - 1
     reference = render_reference(scene, path, resolution, REFERENCE_SAMPLES, frame, cache)
     scene.frame_set(frame)
-    images = {}
+    images, costs = {}, {}
     with lamp_world_for_run():
-        def render(method, engine="eevee", samples=EEVEE_SAMPLES, **settings):
+        def render(method, engine="eevee", samples=EEVEE_SAMPLES, cost=None, **settings):
             request = RenderRequest(out_dir="", method=method, engine=engine, resolution=resolution, samples=samples,
                                     settings=replace(ChainSettings(), **settings))
-            return render_frame(scene, request)[0]
+            rendered, timer = render_frame(scene, request)
+            if cost is not None:
+                stages = timer.milliseconds
+                costs[cost] = sum(stages.get(stage, 0.0) for stage in CAPTURE_STAGES) / stages["render"]
+            return rendered
         images["eevee-rt"] = render("eevee-rt").final
         with TemporaryChanges() as changes:
             try:
@@ -64,8 +73,8 @@ def measure(scene_name, frame_number, resolution, cache):
                 images["eevee-rt-planar"] = render("eevee-rt").final
             except SSRError:
                 pass  # no flat mesh to put EEVEE's plane probe on
-        ours = render("ssr")
-        images["ours"] = ours.final
+        images["ours"] = render("ssr", cost="ours").final
+        images["ours, Cycles captures"] = render("ssr", cost="ours, Cycles captures", capture_engine="cycles").final
         screen_alone = render("ssr", fallback="off")
         images["ours, screen alone"] = screen_alone.final
         with TemporaryChanges() as changes:
@@ -82,7 +91,15 @@ def measure(scene_name, frame_number, resolution, cache):
     images["perfect fallback"] = screen_alone.final[..., :3] + missed[..., None] * (
         cycles_reflection - eevee.specular_color * screen_alone.layers["Specular Indirect"])
     return {column: flip_error(reference.image, images[column][..., :3], reference.mask)
-            for column in COLUMNS if column in images}
+            for column in COLUMNS if column in images}, costs
+
+
+def cost_table(costs):
+    lines = ["| scene | " + " | ".join(f"{column}: captures" for column in COSTED) + " |",
+             "|---" + "|---:" * len(COSTED) + "|"]
+    for name, row in costs.items():
+        lines.append(f"| {name} | " + " | ".join(f"{row[column]:.2f}x" for column in COSTED) + " |")
+    return lines
 
 
 def table(rows):
@@ -109,7 +126,8 @@ def main(argv):
     parser.add_argument("--page", help="rewrite the error-budget block of this markdown page")
     arguments = parser.parse_args(argv)
     require_page(arguments.page)
-    rows = {name: measure(name, arguments.frame, arguments.resolution, arguments.cache) for name in arguments.scenes}
+    measured = {name: measure(name, arguments.frame, arguments.resolution, arguments.cache) for name in arguments.scenes}
+    rows = {name: scores for name, (scores, _) in measured.items()}
     width, height = arguments.resolution
     text = "\n".join([
         f"Latest run: `python -m lab error-budget --scenes {' '.join(arguments.scenes)} "
@@ -117,7 +135,9 @@ def main(argv):
         f"{' --page docs/measurements.md' if arguments.page else ''}`: FLIP on the reflective pixels of a still of "
         f"frame {arguments.frame} against the bench's Cycles reference ({REFERENCE_SAMPLES} samples); in brackets "
         f"as a multiple of EEVEE's ray tracing (the goal: at most {GOAL}). Ours on Cycles' passes: "
-        f"{CYCLES_SAMPLES} samples.", "", *table(rows)])
+        f"{CYCLES_SAMPLES} samples.", "", *table(rows), "",
+        "What the captures cost (auto's choice and the captures' renders, as a multiple of the frame's "
+        "own render; 0: auto captured nothing):", "", *cost_table({name: cost for name, (_, cost) in measured.items()})])
     print(text)
     if arguments.page:
         rewrite_block(arguments.page, "error-budget", text, "Where the error comes from")
