@@ -11,20 +11,25 @@ planar captures are compared with a 64-sample render of the capture: the relativ
 absolute difference of their radiance, beside that of a render at the frame's samples (EEVEE's
 own noise), and the frame's render right after a drawn capture: EEVEE's render and viewport
 pipelines compile their shaders again for each other, which is why runs render their captures.
+Also each capture rendered by Cycles (capture_engine=cycles), and the cube's six faces as one
+multi-view render (six cameras, one view each) against six renders.
 """
 import tempfile
 import time
 
+import bpy
 import numpy as np
+from mathutils import Matrix
 
 from ssr_addon.blender.gpu_context import ensure_backend
 from ssr_addon.blender.overrides import TemporaryChanges
 from ssr_addon.blender.render_passes import render_passes
 from ssr_addon.blender.render_setup import apply_render_setup, decide_render, rendered_view_layer
-from ssr_addon.blender.scene_captures import (draw_cube_capture, draw_planar_capture, find_reflector,
-                                              render_cube_capture, render_planar_capture)
+from ssr_addon.blender.scene_captures import (SceneCaptures, cube_centre, draw_cube_capture, draw_planar_capture,
+                                              find_reflector, render_cube_capture, render_planar_capture)
 from ssr_addon.blender.scene_io import load_scene
 from ssr_addon.blender.viewport_capture import headless_viewport
+from ssr_addon.core.captures import cube_face_views
 from ssr_addon.core.gpu_backend import describe_gpu
 from .bench.scenes import resolve_scene, scene_label
 from .docs import require_page, rewrite_block, scenes_parser
@@ -45,6 +50,32 @@ def _relative(a, b):
     return float(np.abs(a[..., :3] - b[..., :3]).mean() / max(b[..., :3].mean(), 1e-6))
 
 
+def render_cube_multiview(scene, side, changes):
+    """The depth cube map's six faces as one multi-view render of six cameras (timing only: the
+    add-on renders six)."""
+    render = scene.render
+    changes.set_all(render, resolution_x=side, resolution_y=side, use_multiview=True, views_format="MULTIVIEW")
+    for view in render.views:
+        changes.set(view, "use", False)
+    base = bpy.data.objects.new("SSR Multi-View", bpy.data.cameras.new("SSR Multi-View"))
+    made = [base]
+    for index, view in enumerate(cube_face_views(cube_centre(scene))):
+        data = bpy.data.cameras.new(f"SSR Multi-View_{index}")
+        data.angle, data.sensor_fit = np.pi / 2, "HORIZONTAL"
+        camera = bpy.data.objects.new(f"SSR Multi-View_{index}", data)
+        camera.matrix_world = Matrix(np.linalg.inv(view).tolist())
+        made.append(camera)
+        added = render.views.new(f"face{index}")
+        added.camera_suffix = f"_{index}"
+        changes.on_restore(lambda added=added: render.views.remove(added))
+    for camera in made:
+        scene.collection.objects.link(camera)
+        changes.on_restore(lambda camera=camera, data=camera.data: (bpy.data.objects.remove(camera),
+                                                                    bpy.data.cameras.remove(data)))
+    changes.set(scene, "camera", base)
+    bpy.ops.render.render()
+
+
 def measure(name, resolution):
     scene = load_scene(resolve_scene(name))
     ensure_backend()
@@ -56,10 +87,11 @@ def measure(name, resolution):
     row = {"scene": scene_label(resolve_scene(name)), "render": render_s}
     view_layer = rendered_view_layer(scene)
 
-    def rendered(kind, samples):
-        setup = decide_render(scene, samples=samples, resolution=resolution)
+    def rendered(kind, samples, capture_engine="eevee"):
+        setup = decide_render(scene, samples=samples, resolution=resolution, capture_engine=capture_engine)
         with tempfile.TemporaryDirectory() as folder, TemporaryChanges() as changes:
             apply_render_setup(setup, scene, view_layer, changes)
+            SceneCaptures.use_capture_engine(scene, setup, changes)
             if kind == "planar":
                 return render_planar_capture(scene, resolution, *found, folder, changes)
             return render_cube_capture(scene, CUBE_SIZE, folder, changes)
@@ -80,6 +112,12 @@ def measure(name, resolution):
             if kind == "planar" and found is None:
                 continue
             row[f"{kind} render"] = _timed(lambda: rendered(kind, SAMPLES))[1]
+            row[f"{kind} cycles"] = _timed(lambda: rendered(kind, SAMPLES, "cycles"))[1]
+            if kind == "cube":
+                with TemporaryChanges() as changes:
+                    apply_render_setup(decide_render(scene, samples=SAMPLES, resolution=resolution), scene,
+                                       view_layer, changes)
+                    row["cube multi-view"] = _timed(lambda: render_cube_multiview(scene, CUBE_SIZE, changes))[1]
             first, row[f"{kind} draw first"] = _timed(lambda: drawn(kind, viewport))
             camera = scene.camera
             camera.location.x += 0.01  # a moved view: the viewport must draw afresh
@@ -112,16 +150,17 @@ def main(argv):
              f"multiple of the frame's own render. Drawn: through the 3D View, first (compiling) and after "
              f"the camera moved. Planar error: relative mean absolute difference from a {REFERENCE_SAMPLES}-sample "
              f"render of the capture, drawn / rendered at {SAMPLES} samples (EEVEE's own noise).", "",
-             "| scene | frame render s | planar render | planar drawn, first | planar drawn | frame render after a draw "
-             "| cube render | cube drawn, first | cube drawn | planar error drawn / rendered |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "| scene | frame render s | planar render | planar Cycles | planar drawn, first | planar drawn "
+             "| frame render after a draw | cube render | cube Cycles | cube multi-view | cube drawn, first | cube drawn "
+             "| planar error drawn / rendered |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         def cell(key):
             return f"{row[key]:.2f} ({row[key] / row['render']:.2f}x)" if key in row else "-"
         error = row.get("planar error")
         lines.append(f"| {row['scene']} | {row['render']:.2f} | " + " | ".join(cell(key) for key in (
-            "planar render", "planar draw first", "planar draw", "render after draw", "cube render", "cube draw first",
-            "cube draw"))
+            "planar render", "planar cycles", "planar draw first", "planar draw", "render after draw", "cube render",
+            "cube cycles", "cube multi-view", "cube draw first", "cube draw"))
             + f" | {f'{error[0]:.2%} / {error[1]:.2%}' if error else '-'} |")
     text = "\n".join(lines)
     print(text)

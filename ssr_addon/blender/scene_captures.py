@@ -274,7 +274,7 @@ class SceneCaptures:
         return self.viewport is not None and setup.engine == "eevee" and setup.capture_engine == "eevee"
 
     @staticmethod
-    def _use_capture_engine(scene, setup, changes):
+    def use_capture_engine(scene, setup, changes):
         """Through CHANGES, render with setup.capture_engine: Cycles at CYCLES_CAPTURE_SAMPLES,
         denoised, where it asks for Cycles."""
         if setup.capture_engine == "cycles" and scene.render.engine != "CYCLES":
@@ -305,7 +305,7 @@ class SceneCaptures:
                 scene, view_layer, self.viewport, size, setup.samples, *found, changes))
 
         def render(changes):
-            self._use_capture_engine(scene, setup, changes)
+            self.use_capture_engine(scene, setup, changes)
             return render_planar_capture(scene, size, *found, folder, changes)
         return self._reuse("planar", key, render)
 
@@ -320,7 +320,7 @@ class SceneCaptures:
                                                                               setup.cube_size, setup.samples))
 
         def render(changes):
-            self._use_capture_engine(scene, setup, changes)
+            self.use_capture_engine(scene, setup, changes)
             return render_cube_capture(scene, setup.cube_size, folder, changes)
         return self._reuse("cube", key, render)
 
