@@ -26,9 +26,24 @@
  * pixels that close to the plane, with a normal that close to its, leave the reflector. */
 
 /* The screen and the capture found the same surface where their hits lie this many of the
- * frame's pixel footprints apart along the ray, with normals this close. */
+ * frame's pixel footprints apart along the ray, with normals this close, and the screen's hit
+ * is inside a surface, not on a silhouette: its pixel's colour there mixes in what lies
+ * behind, which the capture sees past (a ring round a sphere mirrored in the floor). */
 #define SAME_HIT_PX 4.0
 #define SAME_HIT_NORMAL_COS 0.9
+
+bool on_silhouette(ivec2 texel)
+{
+  float depth = texelFetch(depth_tx, texel, 0).r;
+  float tolerance = SAME_HIT_PX * pixel_footprint(depth);
+  ivec2 last = ivec2(params.viewport_size) - 1;
+  float left = texelFetch(depth_tx, clamp(texel - ivec2(1, 0), ivec2(0), last), 0).r;
+  float right = texelFetch(depth_tx, clamp(texel + ivec2(1, 0), ivec2(0), last), 0).r;
+  float below = texelFetch(depth_tx, clamp(texel - ivec2(0, 1), ivec2(0), last), 0).r;
+  float above = texelFetch(depth_tx, clamp(texel + ivec2(0, 1), ivec2(0), last), 0).r;
+  /* Across a surface depth runs nearly straight from pixel to pixel; across a silhouette it jumps. */
+  return abs(left + right - 2.0 * depth) > tolerance || abs(below + above - 2.0 * depth) > tolerance;
+}
 
 bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
                      float capture_distance, vec3 capture_world_normal)
@@ -40,9 +55,11 @@ bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, ve
   }
   float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
   float hit_depth = -(view_origin + view_ray * screen_distance).z;
-  vec3 screen_normal = texelFetch(normal_tx, texel_at(screen_hit.xy * params.viewport_size), 0).xyz;
+  ivec2 screen_texel = texel_at(screen_hit.xy * params.viewport_size);
+  vec3 screen_normal = texelFetch(normal_tx, screen_texel, 0).xyz;
   return abs(screen_distance - capture_distance) <= SAME_HIT_PX * pixel_footprint(hit_depth) &&
-         dot(normalize(screen_normal), normalize(capture_world_normal)) > SAME_HIT_NORMAL_COS;
+         dot(normalize(screen_normal), normalize(capture_world_normal)) > SAME_HIT_NORMAL_COS &&
+         !on_silhouette(screen_texel);
 }
 
 vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float solid_angle)
