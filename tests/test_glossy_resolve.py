@@ -27,7 +27,7 @@ STRIDE = 3  # the estimate is made at every third pixel in each direction
 BORDER_PX = 12
 
 
-def exact_reflection(projection, depth, rays, floor, roughness):
+def exact_reflection(projection, depth, rays, floor, roughness, colours=COLOURS):
     """(H, W, 3) reflected radiance premultiplied by confidence of the floor pixels on a STRIDE
     grid (NaN elsewhere): the normalised GGX lobe integral of exact rays."""
     rows, columns = np.nonzero(floor)
@@ -46,17 +46,17 @@ def exact_reflection(projection, depth, rays, floor, roughness):
     origins = np.broadcast_to(points[:, None, :], directions.shape)
     t, box, _ = intersect_boxes(origins, directions, BOXES, np.full(weight.shape, 1e3))
     seen = (box >= 0) & seen_by_camera(origins + directions * t[..., None], projection, depth)
-    radiance = (weight[..., None] * np.where(seen[..., None], COLOURS[np.maximum(box, 0)], 0.0)).sum(1)
+    radiance = (weight[..., None] * np.where(seen[..., None], colours[np.maximum(box, 0)], 0.0)).sum(1)
     premultiplied = np.full((HEIGHT, WIDTH, 3), np.nan)
     premultiplied[rows, columns] = radiance / weight.sum(-1)[:, None]
     return premultiplied
 
 
-def settled_error(settings):
+def settled_error(settings, colours=COLOURS):
     """Mean absolute difference of the settled still's premultiplied reflection from the exact
     estimate on the judged floor pixels, and the estimate's mean there."""
-    projection, depth, normal, rays, floor, radiance, surface_roughness = mirror_scene(ROUGHNESS)
-    expected = exact_reflection(projection, depth, rays, floor, ROUGHNESS)
+    projection, depth, normal, rays, floor, radiance, surface_roughness = mirror_scene(ROUGHNESS, colours)
+    expected = exact_reflection(projection, depth, rays, floor, ROUGHNESS, colours)
     judged = np.isfinite(expected[..., 0])
     judged[:BORDER_PX], judged[-BORDER_PX:], judged[:, :BORDER_PX], judged[:, -BORDER_PX:] = False, False, False, False
     arrays, _ = run_synthetic_chain(depth, normal, surface_roughness, projection, settings, radiance=radiance)
@@ -75,3 +75,20 @@ def test_filters_narrow_as_the_history_grows(gpu_backend):
     assert error <= 0.1 * scale, (
         f"settled balanced still {error / scale:.1%} off the exact lobe integral, {unfiltered / scale:.1%} "
         "without its cone and spatial filters: the filters blur a settled image")
+
+
+def test_a_glowing_box_keeps_its_reflection_when_settled(gpu_backend):
+    """The firefly guard averages one iteration's rays tone-mapped, so that the few rays reaching a
+    lamp-bright surface cannot dominate a pixel; at full strength on every iteration it dims that
+    reflection for good, however many iterations the still averages (the wet street's lamps).
+    With the nearest box glowing at 16 times its colour, the guard may add to a settled still's
+    error against the exact lobe integral no more than the share a still is allowed to move when
+    it is called converged (noise_threshold). At full strength it added 3.4 % of the level."""
+    glowing = COLOURS * np.array([[1.0], [1.0], [16.0]], np.float32)
+    balanced = preset("balanced").with_overrides(["border_fade=0"])
+    error, scale = settled_error(balanced, glowing)
+    unguarded, _ = settled_error(balanced.with_overrides(["use_firefly_guard=false"]), glowing)
+    assert unguarded <= 0.1 * scale, f"the chain without its guard is {unguarded / scale:.1%} off the estimate"
+    assert error - unguarded <= balanced.noise_threshold * scale, (
+        f"settled balanced still {error / scale:.1%} off the exact lobe integral with a glowing box, "
+        f"{unguarded / scale:.1%} without the firefly guard: the guard dims what the history has averaged")

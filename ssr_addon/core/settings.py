@@ -87,7 +87,8 @@ class ChainSettings:
         "narrower as iterations accumulate",
         group="resolve")
     use_firefly_guard: bool = _setting(
-        True, "Average the reused rays' colours tone-mapped, so one bright ray cannot dominate a pixel",
+        True, "Average the reused rays' colours tone-mapped, so one bright ray cannot dominate a pixel; "
+        "less so as iterations accumulate, so a settled still keeps its bright reflections",
         group="resolve")
     use_spatial_filter: bool = _setting(
         True, "Smooth the resolved reflection over each pixel's lobe footprint, stopping at depth, "

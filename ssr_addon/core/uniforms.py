@@ -60,7 +60,7 @@ PARAMS_FIELDS = (
     ("int", "resolve_samples", "rays each pixel reuses in the resolve"),
     ("int", "use_cone_filter", "read hits as cones from the colour pyramid"),
     ("int", "color_levels", "levels in the colour pyramid"),
-    ("int", "use_firefly_guard", "resolve in tone-mapped space, c / (1 + max(c))"),
+    ("int", "use_firefly_guard", "resolve in tone-mapped space, c / (1 + max(c) / iterations averaged)"),
     ("float", "denoise_radius", "spatial filter radius in pixels at roughness max_roughness"),
     ("int", "reproject_hit", "temporal filter reprojects the hit point (1) or the surface (0)"),
     ("int", "history_mode", "HISTORY_MODE_*: none, an animation's (clipped), a still's own iterations (unclipped)"),

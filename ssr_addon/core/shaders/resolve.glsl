@@ -20,21 +20,23 @@
  * share of the BRDF weight whose rays found a trustworthy hit.
  *
  * Firefly guard (params.use_firefly_guard; Karis 2014, EEVEE's denoiser): the
- * hits' colours are averaged tone-mapped, c / (1 + max(c)), and mapped back, so
- * one bright ray among dim ones cannot dominate a pixel. */
+ * hits' colours are averaged tone-mapped, c / (1 + s max(c)), and mapped back, so
+ * one bright ray among dim ones cannot dominate a pixel. Its strength s is one over
+ * the iterations the temporal history averages at the pixel: full on a frame without
+ * history, fading as the history converges to the unguarded mean. */
 
 /* Neighbours whose ray left a surface turned further than this from this pixel's (78 degrees:
  * another surface, a wall beside the floor, not the curve of this one) are not reused. */
 #define SAME_SURFACE_COS 0.2
 
-vec3 tonemap(vec3 color)
+vec3 tonemap(vec3 color, float strength)
 {
-  return color / (1.0 + max(max(color.r, color.g), color.b));
+  return color / (1.0 + strength * max(max(color.r, color.g), color.b));
 }
 
-vec3 tonemap_inverse(vec3 color)
+vec3 tonemap_inverse(vec3 color, float strength)
 {
-  return color / max(1.0 - max(max(color.r, color.g), color.b), 1e-4);
+  return color / max(1.0 - strength * max(max(color.r, color.g), color.b), 1e-4);
 }
 
 const ivec2 NEIGHBOURS[9] = ivec2[9](ivec2(0, 0), ivec2(1, 0), ivec2(0, 1), ivec2(1, 1), ivec2(-1, 0),
@@ -84,9 +86,11 @@ void main()
   ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
   ivec2 trace_size = ivec2(params.trace_size);
   int ray_count = params.resolve_samples;
-  float rays_averaged = float(ray_count) * accumulated_iterations(pixel);
-
   /* A ray stands for one of the N rays of every iteration the history averages here. */
+  float rays_averaged = float(ray_count) * accumulated_iterations(pixel);
+  /* The history averages a bright ray's excess over the iterations it holds, so the guard needs
+   * to compress only that share: at full strength it would keep a lamp's glint dim forever. */
+  float guard = params.use_firefly_guard != 0 ? 1.0 / accumulated_iterations(pixel) : 0.0;
   float n_dot_v = dot(normal, to_eye);
 
   vec3 radiance_sum = vec3(0.0);
@@ -122,7 +126,7 @@ void main()
     if (screen_share > 0.0 && weight > 0.0) {
       float hit_weight = weight * screen_share;
       vec3 radiance = hit_radiance(hit.xy, hit_distance, ray_solid_angle(hit.z, rays_averaged, n_dot_v, alpha));
-      radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(radiance) : radiance);
+      radiance_sum += hit_weight * tonemap(radiance, guard);
       hit_weight_sum += hit_weight;
       screen_weight_sum += hit_weight;
       distance_sum += hit_weight * hit_distance;
@@ -130,7 +134,7 @@ void main()
     }
     if (captured.a > 0.0 && weight > 0.0) {
       float hit_weight = weight * captured.a;
-      radiance_sum += hit_weight * (params.use_firefly_guard != 0 ? tonemap(captured.rgb) : captured.rgb);
+      radiance_sum += hit_weight * tonemap(captured.rgb, guard);
       hit_weight_sum += hit_weight;
       capture_weight_sum += hit_weight;
     }
@@ -145,9 +149,7 @@ void main()
                              1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness) : 1.0;
   float confidence = hit_weight_sum / weight_sum * roughness_fade;
   vec3 radiance = radiance_sum / hit_weight_sum;
-  if (params.use_firefly_guard != 0) {
-    radiance = tonemap_inverse(radiance);
-  }
+  radiance = tonemap_inverse(radiance, guard);
   resolved_img = vec4(radiance * confidence, confidence);
   /* The screen's hits only: a capture's have no place on screen to reproject. */
   reflection_hit_img = screen_weight_sum > 0.0 ? vec4(distance_sum, hit_uv_sum, 0.0) / screen_weight_sum : vec4(0.0);
