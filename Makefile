@@ -12,6 +12,13 @@ BLENDER_EXT := $(VENV)/lib/python3.11/site-packages/bpy/5.0/scripts/addons_core/
 	bench-captures slides \
 	dist validate clean
 
+# Node runs the Flamenco job type's test; package.json pins it as a dev dependency.
+NODE_STAMP := node_modules/.installed
+
+$(NODE_STAMP): package.json package-lock.json
+	npm ci --no-audit --no-fund --loglevel=error
+	touch $(NODE_STAMP)
+
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
@@ -25,11 +32,11 @@ demo: $(STAMP)
 	$(PY) -m ssr_addon render test_scenes/mirror_floor.py --method ssr --out $(OUT)/ssr --overwrite
 	$(PY) -m lab demo test_scenes/mirror_floor.py $(OUT)
 
-test: $(STAMP)
+test: $(STAMP) $(NODE_STAMP)
 	$(PY) -m pytest tests
 
 # The developer's loop: everything but the tests marked slow (EEVEE and Cycles renders, the CLI end to end).
-test-fast: $(STAMP)
+test-fast: $(STAMP) $(NODE_STAMP)
 	$(PY) -m pytest tests -m "not slow"
 
 BENCH_SCENES := mirror_floor glossy_corridor rough_spheres curved_mirror rolling_ball wet_street

@@ -2,8 +2,10 @@
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
+import time
 
 import pytest
 
@@ -103,12 +105,27 @@ def build(scene):
 """
 
 
+def scene_builder(tmp_path_factory, name, text):
+    """A .py scene builder NAME.py holding TEXT, in a fresh folder."""
+    path = tmp_path_factory.mktemp(name) / f"{name}.py"
+    path.write_text(text)
+    return path
+
+
 @pytest.fixture(scope="session")
 def dolly(tmp_path_factory):
     """A five-frame camera dolly over the mirror floor at 64x36, 4 EEVEE samples, no lamp."""
-    path = tmp_path_factory.mktemp("dolly") / "dolly.py"
-    path.write_text(DOLLY)
-    return path
+    return scene_builder(tmp_path_factory, "dolly", DOLLY)
+
+
+def terminate_once_written(process, path, timeout=300):
+    """SIGTERM PROCESS as soon as PATH exists (or it ended); (return code, stderr)."""
+    deadline = time.monotonic() + timeout
+    while not os.path.exists(path) and process.poll() is None and time.monotonic() < deadline:
+        time.sleep(0.05)
+    process.send_signal(signal.SIGTERM)
+    _, stderr = process.communicate(timeout=timeout)
+    return process.returncode, stderr
 
 
 def metal_floor_under(light_type, **settings):

@@ -397,8 +397,8 @@ def test_render_animation_writes_every_frame_in_background(addon, tmp_path):
     assert bpy.ops.render.ssr_render_animation() == {"FINISHED"}
     written = sorted(os.listdir(tmp_path / "anim"))
     # The output path's prefix names the frames, as F12 does; the command line's frame loop writes the report.
-    assert written == ["report.json"] + [f"shot_{n:04d}{suffix}" for n in (3, 4)
-                                         for suffix in (".exr", ".passes.exr", ".png")]
+    assert written == [".ssr_records", "report.json"] + [f"shot_{n:04d}{suffix}" for n in (3, 4)
+                                                         for suffix in (".exr", ".passes.exr", ".png")]
     with open(tmp_path / "anim" / "report.json", encoding="utf-8") as stream:
         report = json.load(stream)
     assert [entry["frame"] for entry in report["frames"]] == [3, 4] and report["fingerprint"]["mode"] == "NONE"

@@ -80,7 +80,7 @@ def test_every_output_is_finite_and_complete(render_scene):
                for method in ("ssr", "none")]
     for folder in folders:
         names = sorted(os.listdir(folder))
-        assert names == ["frame_0001.exr", "frame_0001.passes.exr", "frame_0001.png", "report.json"]
+        assert names == [".ssr_records", "frame_0001.exr", "frame_0001.passes.exr", "frame_0001.png", "report.json"]
         for path in glob.glob(os.path.join(folder, "*.exr")):
             for name, channel in read_exr(path).items():
                 assert np.isfinite(channel).all(), f"{path}: {name} has NaN/Inf"

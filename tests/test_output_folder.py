@@ -5,11 +5,10 @@ import os
 import signal
 import subprocess
 import sys
-import time
 
 import pytest
 
-from conftest import REPO, SCENES, run_cli
+from conftest import REPO, SCENES, run_cli, terminate_once_written
 from test_cli_errors import error_lines
 
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
@@ -25,7 +24,7 @@ def strict_json(path):
 
 
 def frames_in(folder):
-    return sorted(name for name in os.listdir(folder) if not name.startswith("report"))
+    return sorted(name for name in os.listdir(folder) if not name.startswith(("report", ".ssr_records")))
 
 
 @pytest.fixture(scope="module")
@@ -106,12 +105,8 @@ def test_sigterm_leaves_complete_frames_and_no_temporary_files(dolly, tmp_path):
                                 "--frames", "1-5", "--out", str(out)], cwd=REPO, text=True,
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                                env={**os.environ, "TMPDIR": str(temporary)})
-    deadline = time.monotonic() + 300
-    while not (out / "frame_0001.exr").exists() and process.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    process.send_signal(signal.SIGTERM)
-    _, stderr = process.communicate(timeout=300)
-    assert process.returncode == 128 + signal.SIGTERM, stderr[-2000:]
+    returncode, stderr = terminate_once_written(process, out / "frame_0001.exr")
+    assert returncode == 128 + signal.SIGTERM, stderr[-2000:]
     assert "Traceback" not in stderr and "terminated" in stderr
     assert not [name for name in os.listdir(temporary) if name.startswith("ssr_passes_")]
     written = frames_in(out)

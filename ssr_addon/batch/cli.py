@@ -1,5 +1,5 @@
-"""Command line: `python -m ssr_addon render SCENE --out DIR ...`, `... compare SCENE --out DIR`
-and `... preview SCENE --out DIR` (docs/cli.md).
+"""Command line: `python -m ssr_addon render SCENE --out DIR ...`, `... compare SCENE --out DIR`,
+`... preview SCENE --out DIR` and `... farm SCENE --frames A-B --out DIR` (docs/cli.md).
 
 Also reachable from the Blender binary, where SCENE may be left out to use the
 .blend file Blender opened:
@@ -19,8 +19,9 @@ from ..core.errors import SSRError
 from ..core.settings import ChainSettings
 from .compare import compare_modes
 from .outputs import prepare_output_folder, write_json, write_rgba_exr, written_together
+from .farm import run_farm
 from .preview import run_preview
-from .request import METHODS, RenderRequest, parse_frames, parse_resolution
+from .request import DEFAULT_WARMUP_FRAMES, METHODS, RenderRequest, frame_numbers, parse_frames, parse_resolution
 from .run import run_render
 
 
@@ -29,6 +30,34 @@ class ArgumentParser(argparse.ArgumentParser):
 
     def error(self, message):
         raise SSRError(message)
+
+
+# The render options a farm hands on to each of its chunks: (flag, argparse keywords).
+RENDER_OPTIONS = (
+    ("--method", dict(default="ssr", choices=METHODS)),
+    ("--engine", dict(default="eevee", choices=("eevee", "cycles"), help="engine that renders the input passes")),
+    ("--resolution", dict(help="WIDTHxHEIGHT (default: the scene's)")),
+    ("--samples", dict(type=int, help="EEVEE or Cycles samples per pixel (default: the scene's own)")),
+    ("--set", dict(dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a chain setting, e.g. --set thickness=0.1 or --set preset=high (repeatable)")),
+    ("--on-error", dict(default="stop", choices=("stop", "skip"),
+                        help="a frame that fails: stop the run, or report it and go on")),
+)
+
+
+def _add_render_options(parser):
+    for flag, keywords in RENDER_OPTIONS:
+        parser.add_argument(flag, **keywords)
+
+
+def _render_words(arguments):
+    """RENDER_OPTIONS as ARGUMENTS hold them, as command-line words."""
+    words = []
+    for flag, keywords in RENDER_OPTIONS:
+        value = getattr(arguments, keywords.get("dest", flag[2:].replace("-", "_")))
+        for item in value if isinstance(value, list) else [] if value is None else [value]:
+            words += [flag, str(item)]
+    return words
 
 
 def build_parser():
@@ -40,19 +69,26 @@ def build_parser():
                         help="a .blend file or a .py scene builder defining build(scene) "
                              "(default: the .blend file the Blender binary opened)")
     render.add_argument("--out", required=True, help="output folder")
-    render.add_argument("--method", default="ssr", choices=METHODS)
-    render.add_argument("--engine", default="eevee", choices=("eevee", "cycles"),
-                        help="engine that renders the input passes")
-    render.add_argument("--resolution", help="WIDTHxHEIGHT (default: the scene's)")
     render.add_argument("--frames", help="frame N or range A-B (default: the current frame)")
-    render.add_argument("--samples", type=int, help="EEVEE or Cycles samples per pixel (default: the scene's own)")
-    render.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="override a chain setting, e.g. --set thickness=0.1 or --set preset=high (repeatable)")
-    render.add_argument("--on-error", default="stop", choices=("stop", "skip"),
-                        help="a frame that fails: stop the run, or report it and go on")
+    _add_render_options(render)
+    render.add_argument("--warmup", type=int, metavar="K",
+                        help="render the K frames before the first one to write, without writing them, so it "
+                             "carries an uninterrupted run's history: what a farm chunk runs (default: 8 for a "
+                             "range, and on resuming; none for a single frame, which renders as a still)")
     render.add_argument("--overwrite", action="store_true",
                         help="replace the run already in --out (its frames and report) instead of resuming it; "
                              "without it, a folder holding a different run is refused")
+    farm = commands.add_parser("farm", help="render a frame range as chunks in several local processes, into one "
+                                            "folder, as a render farm would")
+    farm.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
+    farm.add_argument("--out", required=True, help="output folder, shared by the chunks")
+    farm.add_argument("--frames", required=True, help="range A-B to render")
+    farm.add_argument("--chunk", type=int, default=30, help="frames per chunk (default 30)")
+    farm.add_argument("--workers", type=int, default=1, help="chunks rendered at the same time (default 1)")
+    farm.add_argument("--warmup", type=int, default=DEFAULT_WARMUP_FRAMES, metavar="K",
+                      help=f"frames each chunk renders, unwritten, before its first (default {DEFAULT_WARMUP_FRAMES})")
+    farm.add_argument("--overwrite", action="store_true", help="remove the run already in --out first")
+    _add_render_options(farm)
     compare = commands.add_parser("compare", help="render one frame with SSR, cubemap, planar and no reflections, "
                                                   "side by side with the cost of each")
     compare.add_argument("scene", help="a .blend file or a .py scene builder defining build(scene)")
@@ -88,12 +124,14 @@ def run(argv=None):
         return _compare(arguments)
     if arguments.command == "preview":
         return _preview(arguments)
+    if arguments.command == "farm":
+        return _farm(arguments)
     request = RenderRequest(
         out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
         resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
         frames=parse_frames(arguments.frames) if arguments.frames else None,
         samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
-        on_error=arguments.on_error, overwrite=arguments.overwrite)
+        on_error=arguments.on_error, overwrite=arguments.overwrite, warmup=arguments.warmup)
     scene_path = arguments.scene or bpy.data.filepath
     if not scene_path:
         raise SSRError("no SCENE given and Blender has no .blend file open")
@@ -120,6 +158,22 @@ def _compare(arguments):
                {"scene": arguments.scene, "frame": scene.frame_current, "modes": labels, "problems": problems})
     for line in labels + problems:
         print(line)
+
+
+def _farm(arguments):
+    frames = parse_frames(arguments.frames)
+    if arguments.warmup < 0:
+        raise SSRError(f"--warmup must be 0 or more frames, got {arguments.warmup}")
+    # Checked here, once, rather than by every chunk: the scene, its camera, the range, the words.
+    RenderRequest(out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
+                  resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
+                  samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
+                  on_error=arguments.on_error)
+    scene = load_scene(arguments.scene)
+    require_camera(scene)
+    frame_numbers(scene, frames)
+    return run_farm(os.path.abspath(arguments.scene), frames, arguments.chunk, arguments.workers,
+                    os.path.abspath(arguments.out), arguments.warmup, _render_words(arguments), arguments.overwrite)
 
 
 def _preview(arguments):

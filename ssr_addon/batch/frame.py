@@ -172,7 +172,8 @@ def unresolved_toward_geometry(scene, passes, layers, settings):
 
 
 def write_frame(out_dir, frame, images, scene, prefix="frame_"):
-    """Write one frame's three files under temporary names, then rename them together."""
+    """Write one frame's three files under temporary names, then rename them together; returns
+    the PNG's path."""
     final = images.final
     if not np.isfinite(final).all():
         raise SSRError(f"frame {frame}: the result has NaN or Inf pixels; nothing written")
@@ -181,3 +182,4 @@ def write_frame(out_dir, frame, images, scene, prefix="frame_"):
         write_exr(passes_partial, exr_channels(images.layers))
         write_display_png(png_partial, final, scene)
         write_rgba_exr(final_partial, final)
+    return png

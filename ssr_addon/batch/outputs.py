@@ -79,13 +79,23 @@ def _finite(value):
     return value
 
 
-def prepare_output_folder(folder):
+def remove_partials(paths):
+    """Remove what an interrupted write of PATHS left (written_together's temporary names)."""
+    for path in paths:
+        _discard(_partial_name(path))
+
+
+def prepare_output_folder(folder, remove_leftovers=True):
+    """Create FOLDER, or check it is writable; REMOVE_LEFTOVERS: every temporary file an interrupted
+    write left there (not where other runs may be writing into it at the same time)."""
     try:
         os.makedirs(folder, exist_ok=True)
     except OSError as error:
         raise SSRError(f"cannot create output folder {folder}: {error.strerror}") from None
     if not os.access(folder, os.W_OK):
         raise SSRError(f"output folder {folder} is not writable")
-    for name in os.listdir(folder):  # leftovers of an interrupted run
+    if not remove_leftovers:
+        return
+    for name in os.listdir(folder):
         if name.startswith(".") and name.endswith(".partial"):
             os.remove(os.path.join(folder, name))

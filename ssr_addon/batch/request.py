@@ -16,6 +16,10 @@ EEVEE_RAYTRACING_METHODS = {"eevee-rt": "default", "eevee-rt-high": "high"}  # m
 # The EEVEE ray-tracing set-up (render_setup.EEVEE_RAYTRACING) each method renders with; "none" and
 # the baselines render the scene's own.
 RENDER_RAYTRACING = {**EEVEE_RAYTRACING_METHODS, "ssr": SSR_BASE_RAYTRACING}
+# Frames rendered (not written) before the first frame a run writes, so its temporal history is
+# as warm as an uninterrupted run's (the filter averages ~10). The frame sequence draws a
+# frame's random numbers from its number alone, so they trace the rays an uninterrupted run did.
+DEFAULT_WARMUP_FRAMES = 8
 
 
 @dataclass
@@ -29,6 +33,8 @@ class RenderRequest:
     settings: ChainSettings = field(default_factory=ChainSettings)
     on_error: str = "stop"       # a frame that fails: "stop" the run or "skip" to the next frame
     overwrite: bool = False      # replace the run in out_dir instead of resuming it (run_report)
+    warmup: int = None           # frames rendered, not written, before the first frame to write (None:
+    #                              DEFAULT_WARMUP_FRAMES for a range; none for one frame, a still)
     file_prefix: str = "frame_"  # frame N is written as {file_prefix}{N:04d}.exr, .png and .passes.exr
     mode: str = None             # the operators' comparison mode, when one applies a baseline
     time_stages: bool = False    # wait for the GPU after each chain stage to time it apart (benchmarks);
@@ -46,6 +52,8 @@ class RenderRequest:
         if self.samples is not None and self.samples < 1:
             raise SSRError(f"--samples must be at least 1, got {self.samples}")
         lamp_split_method(self.engine, self.settings.lamp_split)  # one line now, not at the first frame
+        if self.warmup is not None and self.warmup < 0:
+            raise SSRError(f"--warmup must be 0 or more frames, got {self.warmup}")
         if self.on_error not in ("stop", "skip"):
             raise SSRError(f"--on-error {self.on_error!r}: expected stop or skip")
 

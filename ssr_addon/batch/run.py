@@ -3,7 +3,6 @@ written whole, resumable, with progress and a report (report.json)."""
 import ctypes
 import ctypes.util
 import functools
-import os
 
 import bpy
 
@@ -14,16 +13,10 @@ from ..core.chain import ChainState
 from ..core.errors import SSRError
 from ..core.gpu_backend import describe_gpu
 from .frame import FrameFallbacks, render_frame, write_frame
-from .outputs import prepare_output_folder, write_json
+from .outputs import prepare_output_folder, remove_partials
 from .progress_bar import FrameProgress
-from .request import frame_numbers
-from .run_report import REPORT_NAME, claim_folder, fingerprint, scene_identity
-
-# Frames re-rendered (not written) before the first missing frame of a resumed run, so
-# its temporal history is as warm as an uninterrupted run's (the filter averages ~10).
-# The frame sequence draws a frame's random numbers from its number alone, so the
-# re-rendered frames trace the same rays as an uninterrupted run did.
-RESUME_WARMUP_FRAMES = 8
+from .request import DEFAULT_WARMUP_FRAMES, frame_numbers
+from .run_report import FolderRecords, cost_summary, fingerprint, frame_paths, scene_identity
 
 
 def return_large_buffers_to_the_system():
@@ -44,10 +37,13 @@ class RenderRun:
     """One run of REQUEST over SCENE's frames into request.out_dir, carrying temporal history.
 
     Made before anything renders: it checks the scene and claims the output
-    folder (run_report: resume a matching run, refuse a different one).
-    `frames()` renders and writes the frames one at a time, yielding each
-    (frame, images) once written, so a modal operator can step it; the report
-    (also report.json, rewritten after every frame) is in `report`.
+    folder (run_report: resume a matching run, refuse a different one; other runs
+    may write other frames of the shot there at the same time). `frames()` renders
+    and writes the frames one at a time, yielding each (frame, images) once written,
+    so a modal operator can step it; the run's report is in `report`, the folder's
+    (report.json, every run's frames, rewritten after every frame) in `merged`.
+    Before the first frame it renders, the run renders the request's warm-up frames
+    without writing them, so that frame carries the history an uninterrupted run would.
     RENDER(scene, request, state, fallbacks) renders one frame (default render_frame; an
     operator's applies a comparison baseline first) with the run's FrameFallbacks: the levels
     decided on the first frame, captures reused from frame to frame while nothing they show moves. UNSAVED_CHANGES: the scene file on
@@ -61,14 +57,17 @@ class RenderRun:
         self.scene, self.request, self.log, self.render = scene, request, log, render
         self.progress_stream = progress_stream
         self.frame_list = frame_numbers(scene, request.frames)
-        prepare_output_folder(request.out_dir)
+        prepare_output_folder(request.out_dir, remove_leftovers=False)  # other runs may be writing there
         return_large_buffers_to_the_system()
-        self.report_path = os.path.join(request.out_dir, REPORT_NAME)
         samples = render_samples(scene, request.engine, request.samples)
         identity = fingerprint(scene_identity(scene_path, unsaved_changes), request,
                                render_size(scene, request.resolution), samples)
-        kept = claim_folder(request.out_dir, identity, self.frame_list, request.overwrite)
+        self.records = FolderRecords(request.out_dir, self.frame_list)
+        kept = self.records.claim(identity, request.overwrite)
         self.todo = [f for f in self.frame_list if f not in kept]
+        for frame in self.todo:  # what an interrupted run left of this run's frames
+            remove_partials(frame_paths(request.out_dir, request.file_prefix, frame))
+        self.merged = None
         self.report = {
             "fingerprint": identity,
             "scene": scene_path, "method": request.method, "engine": request.engine, "samples": samples,
@@ -83,14 +82,16 @@ class RenderRun:
             self.log(f"all {len(self.frame_list)} frames are already complete in {request.out_dir}")
             return
         first_missing = self.todo[0]
-        warmup = [f for f in self.frame_list if first_missing - RESUME_WARMUP_FRAMES <= f < first_missing] \
-            if request.method == "ssr" and request.settings.use_temporal else []
+        warmup = self._warmup_frames(first_missing)
         if len(self.todo) < len(self.frame_list):
             self.log(f"resuming at frame {first_missing}: {len(self.frame_list) - len(self.todo)} complete frames "
                      f"kept, history re-warmed over {len(warmup)} frames")
-        # One frame is a still (accumulated until converged); a range is an animation whose
-        # history carries from frame to frame, reset on a jump in the range or a camera cut.
-        state = ChainState.still() if len(self.frame_list) == 1 else ChainState()
+        elif warmup:
+            self.log(f"history warmed over frames {warmup[0]}-{warmup[-1]} (rendered, not written)")
+        # One frame is a still (accumulated until converged); a range, or a frame after warm-up
+        # frames, is an animation whose history carries from frame to frame, reset on a jump in
+        # the range or a camera cut.
+        state = ChainState.still() if len(self.frame_list) == 1 and not warmup else ChainState()
         fallbacks = FrameFallbacks() if request.method == "ssr" else None
         render = functools.partial(self.render or render_frame, fallbacks=fallbacks)
         try:
@@ -100,7 +101,7 @@ class RenderRun:
             if fallbacks is not None:
                 fallbacks.release()
         _summarise(self.report, self.log)
-        write_json(self.report_path, self.report)
+        self.merged = self.records.write(self.report)
         failed = self.report["failed_frames"]
         if failed:
             raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
@@ -119,8 +120,9 @@ class RenderRun:
                 self._warn_once(images.passes, warned)
                 if frame in warmup:
                     continue
-                write_frame(request.out_dir, frame, images, scene, request.file_prefix)
+                written = write_frame(request.out_dir, frame, images, scene, request.file_prefix)
                 timer.lap("write")
+                self.log(f"Saved: '{written}'")  # Blender's own line, which a farm's worker reads
             except SSRError as error:
                 if request.on_error == "stop" or frame in warmup:
                     raise
@@ -128,10 +130,20 @@ class RenderRun:
                 self.report["failed_frames"].append({"frame": frame, "error": str(error)})
                 state.reset_history()
                 progress.frame_done(frame, "failed")
-                write_json(self.report_path, self.report)
+                self.merged = self.records.write(self.report)
                 continue
             self._record(frame, images, timer, progress)
             yield frame, images
+
+    def _warmup_frames(self, first):
+        """The frames before FIRST, within the scene, that give it an uninterrupted run's history."""
+        request = self.request
+        if request.method != "ssr" or not request.settings.use_temporal:
+            return []
+        count = request.warmup
+        if count is None:
+            count = DEFAULT_WARMUP_FRAMES if len(self.frame_list) > 1 else 0  # one frame alone is a still
+        return list(range(max(first - count, self.scene.frame_start), first))
 
     def _warn_once(self, passes, warned):
         """The material warnings of the passes, each logged once per run and kept in the report."""
@@ -153,12 +165,12 @@ class RenderRun:
                                  "render_ms": stages["render"], "addon_ms": round(own_ms, 3),
                                  **images.stats})
         report["frames"].sort(key=lambda entry: entry["frame"])
-        write_json(self.report_path, report)
+        self.merged = self.records.write(report)
         progress.frame_done(frame, f"render {stages['render'] / 1000:.1f} s + add-on {own_ms / 1000:.2f} s")
 
 
 def run_render(scene, scene_path, request, log=print, progress_stream=None):
-    """Render every requested frame into request.out_dir (RenderRun); returns the report."""
+    """Render every requested frame into request.out_dir (RenderRun); returns the run's report."""
     run = RenderRun(scene, scene_path, request, log, progress_stream)
     for _ in run.frames():
         pass
@@ -167,11 +179,8 @@ def run_render(scene, scene_path, request, log=print, progress_stream=None):
 
 def _summarise(report, log):
     """The add-on's own cost per frame beside the render's, as a ratio (into the report and the log)."""
-    timed = [entry for entry in report["frames"] if "addon_ms" in entry]
-    if timed:
-        render_ms = sum(entry["render_ms"] for entry in timed) / len(timed)
-        addon_ms = sum(entry["addon_ms"] for entry in timed) / len(timed)
-        report["mean_ms_per_frame"] = {"render": round(render_ms, 1), "addon": round(addon_ms, 1),
-                                       "addon_over_render": round(addon_ms / render_ms, 4)}
-        log(f"per frame: render {render_ms:.0f} ms, add-on (lamp split, read-back, chain, composite, writing) "
-            f"{addon_ms:.0f} ms = {addon_ms / render_ms:.3f} x the render")
+    summary = cost_summary(report["frames"])
+    if summary:
+        report["mean_ms_per_frame"] = summary
+        log(f"per frame: render {summary['render']:.0f} ms, add-on (lamp split, read-back, chain, composite, "
+            f"writing) {summary['addon']:.0f} ms = {summary['addon_over_render']:.3f} x the render")

@@ -16,7 +16,12 @@ def render_to_exr(scene, path, changes):
                     file_format="OPEN_EXR_MULTILAYER", color_depth="32", exr_codec="ZIP")
     changes.set_all(scene.render, filepath=path, use_file_extension=False)
     try:
-        bpy.ops.render.render(write_still=True, scene=scene.name)
+        bpy.ops.render.render(write_still=False, scene=scene.name)
+        # Saved from the result rather than by the render: a render that writes its file prints
+        # "Saved: ..." for it, which a render farm's worker takes for one of the shot's outputs.
+        result = bpy.data.images.get("Render Result")
+        if result is not None:
+            result.save_render(path, scene=scene)
     except RuntimeError as error:
         raise SSRError(f"render of scene '{scene.name}' failed: {str(error).strip()}") from None
     if not os.path.isfile(path):
