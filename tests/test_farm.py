@@ -73,6 +73,11 @@ def test_chunks_rendered_two_at_a_time_equal_one_run(shot, tmp_path):
     assert max(differences.values()) < 2e-3, {frame: round(value, 5) for frame, value in differences.items()}
     assert [entry["frame"] for entry in report(chunks)["frames"]] == list(range(1, 25))
     assert sorted(run["frames"] for run in report(chunks)["runs"]) == ["1-6", "13-18", "19-24", "7-12"]
+    # A farm's worker takes each "Saved:" line for an output: the warm-up frames print none.
+    for first in (1, 7, 13, 19):
+        log = (chunks / ".ssr_records" / "logs" / f"frames_{first:04d}-{first + 5:04d}.log").read_text()
+        saved = [line for line in log.splitlines() if line.startswith("Saved:")]
+        assert saved == [f"Saved: '{chunks / f'frame_{frame:04d}.png'}'" for frame in range(first, first + 6)], saved
 
 
 def render_chunk(shot, frames, out):
