@@ -197,6 +197,40 @@ def test_a_failing_draw_is_a_message_and_the_view_is_restored(live_view):
     session.release()
 
 
+def test_data_passes_are_drawn_at_one_sample_and_the_samples_restored(live_view, monkeypatch):
+    """A draw renders all the viewport's TAA samples; the passes one sample gives alike (Normal,
+    Position, Glossy Color, the material AOVs) are drawn at one, the noisy ones at the scene's.
+    The scene's samples are as before after a capture, and after one whose draw fails halfway."""
+    from ssr_addon.blender.viewport_capture import ViewportCapture
+    scene, space, region = live_view
+    scene.eevee.taa_samples = 6
+    drawn, fail_at = [], []
+    real_draw = ViewportCapture._draw
+
+    def counting_draw(self, scene, view_layer, view, projection, render_pass, channels):
+        drawn.append((render_pass, scene.eevee.taa_samples))
+        if render_pass in fail_at:
+            raise SSRError(f"the viewport could not draw its {render_pass} pass")
+        return real_draw(self, scene, view_layer, view, projection, render_pass, channels)
+    monkeypatch.setattr(ViewportCapture, "_draw", counting_draw)
+    session = LiveSession(space, region, space.region_3d)
+    clock = [0.0]
+    try:
+        _tick_until(session, scene, clock, lambda: drawn)
+        samples = dict(drawn)
+        assert {samples[name] for name in ("NORMAL", "POSITION", "SPECULAR_COLOR")} == {1}, drawn
+        assert samples["COMBINED"] == samples["SPECULAR_LIGHT"] == 6, drawn
+        assert scene.eevee.taa_samples == 6
+        fail_at.append("SPECULAR_LIGHT")  # after the one-sample Normal and Position
+        session.release()
+        session = LiveSession(space, region, space.region_3d)
+        with pytest.raises(SSRError, match="SPECULAR_LIGHT"):
+            _tick_until(session, scene, clock, lambda: False)
+        assert scene.eevee.taa_samples == 6
+    finally:
+        session.release()
+
+
 def test_unregistering_stops_the_session_and_leaves_no_timer(live_view):
     scene, space, region = live_view
     window_manager = bpy.context.window_manager
