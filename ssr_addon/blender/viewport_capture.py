@@ -38,10 +38,10 @@ VIEWPORT_PASSES = {
     ROUGHNESS_AOV: ROUGHNESS_AOV, F0_AOV: F0_AOV,
 }
 
-# Passes one sample draws as all the viewport's samples do, bar edge antialiasing (measured on a
-# street scene at 320x180: one sample 0.23 s a draw, sixteen 3.2 s): drawn at one sample.
-# Combined, Specular Light and Shadow, noisy from EEVEE's sampling of lights, shadows and rays,
-# are drawn at the scene's viewport samples.
+# Passes one sample draws as all the viewport's samples do, bar edge antialiasing: drawn at one
+# sample, since an offscreen draw renders every sample the viewport is set to
+# (Instance::draw_viewport_image_render). Combined, Specular Light and Shadow, noisy from EEVEE's
+# sampling of lights, shadows and rays, are drawn at the scene's viewport samples.
 ONE_SAMPLE_PASSES = ("Normal", "Position", "Glossy Color", ROUGHNESS_AOV, F0_AOV)
 
 
