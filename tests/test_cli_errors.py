@@ -42,6 +42,7 @@ def error_lines(result):
     ("non-square pixels", [], "non-square pixels (pixel aspect 1.1:1)"),
     ("bad frames", ["--frames", "ten"], "--frames"),
     ("reversed frames", ["--frames", "9-3"], "reversed"),
+    ("negative warm-up", ["--frames", "1-2", "--warmup", "-1"], "--warmup"),
     ("bad resolution", ["--resolution", "320by180"], "--resolution"),
     ("bad setting", ["--set", "thickness=thick"], "thickness"),
     ("unknown setting", ["--set", "colour=1"], "colour"),
@@ -67,6 +68,22 @@ def test_bad_input_gets_one_clear_line(tmp_path, case, extra, expected):
     assert result.returncode == 2
     assert len(lines) == 1 and lines[0].startswith("error:") and expected in lines[0], result.stderr
     assert "Traceback" not in result.stderr
+    assert not out.exists() or not os.listdir(out)
+
+
+@pytest.mark.parametrize("extra, expected", [
+    (["--frames", "1-3", "--chunk", "0"], "--chunk"),
+    (["--frames", "1-3", "--workers", "0"], "--workers"),
+    (["--frames", "1-100000"], "outside scene"),
+    (["--frames", "1-3", "--warmup", "-2"], "--warmup"),
+    ([], "--frames"),
+])
+def test_bad_farm_input_gets_one_clear_line(tmp_path, extra, expected):
+    out = tmp_path / "out"
+    result = run_cli("farm", os.path.join(SCENES, "mirror_floor.py"), "--out", out, *extra, check=False)
+    lines = error_lines(result)
+    assert result.returncode == 2
+    assert len(lines) == 1 and lines[0].startswith("error:") and expected in lines[0], result.stderr
     assert not out.exists() or not os.listdir(out)
 
 
