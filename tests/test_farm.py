@@ -80,6 +80,23 @@ def test_chunks_rendered_two_at_a_time_equal_one_run(shot, tmp_path):
         assert saved == [f"Saved: '{chunks / f'frame_{frame:04d}.png'}'" for frame in range(first, first + 6)], saved
 
 
+def test_the_merged_report_keeps_every_run_s_frames_and_entries():
+    """A run's record made when it claims the folder (fingerprint only) erases nothing the others
+    recorded; a frame one run failed and another rendered is no longer failed."""
+    from ssr_addon.batch.run_report import merge_reports
+    full = {"fingerprint": {"method": "ssr"}, "scene": "shot.blend", "gpu": "A",
+            "frames": [{"frame": 1}, {"frame": 2}], "failed_frames": [{"frame": 3, "error": "x"}],
+            "runs": [{"host": "a", "frames": "1-3"}], "warnings": ["w"]}
+    claimed = {"fingerprint": {"method": "ssr"}, "frames": [], "runs": [{"host": "b", "frames": "3-4"}]}
+    rendered = {**claimed, "gpu": "B", "frames": [{"frame": 3}, {"frame": 4}], "warnings": ["w", "v"]}
+    merged = merge_reports([full, claimed])
+    assert merged["scene"] == "shot.blend" and merged["gpu"] == "A"
+    assert [entry["frame"] for entry in merged["failed_frames"]] == [3]
+    merged = merge_reports([full, rendered])
+    assert [entry["frame"] for entry in merged["frames"]] == [1, 2, 3, 4] and merged["failed_frames"] == []
+    assert merged["gpu"] == "B" and merged["warnings"] == ["w", "v"] and len(merged["runs"]) == 2
+
+
 def render_chunk(shot, frames, out):
     """A chunk's process, started (the cheap `none` method: what is tested is the folder's records)."""
     return subprocess.Popen([sys.executable, "-m", "ssr_addon", "render", str(shot), "--method", "none",

@@ -27,6 +27,7 @@ from .outputs import write_json
 REPORT_NAME = "report.json"
 RECORDS_FOLDER = ".ssr_records"  # one record per run's frame range, and the folder's lock
 LOCK_NAME = "lock"
+MERGED_LISTS = ("frames", "failed_frames", "warnings", "runs")  # merged entry by entry, not replaced
 OUTPUT_SUFFIXES = (".exr", ".png", ".passes.exr")
 # The extension root, two packages up: ssr_addon/batch/ -> the folder holding blender_manifest.toml.
 MANIFEST = os.path.join(os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
@@ -102,14 +103,14 @@ def read_report(out_dir):
 
 
 def merge_reports(reports):
-    """One report of REPORTS (report.json's and the runs' records): the last one's run-level
-    entries, every frame's newest entry, the failures no run has since rendered, and each
-    run's range, machine and GPU under "runs"."""
+    """One report of REPORTS (report.json's and the runs' records): each run-level entry as the
+    last report holding it has it, every frame's newest entry, the failures no run has since
+    rendered, and each run's range, machine and GPU under "runs"."""
     if not reports:
         return {}
-    merged = dict(reports[-1])
-    frames, failed, warnings, runs = {}, {}, [], {}
+    merged, frames, failed, warnings, runs = {}, {}, {}, [], {}
     for report in reports:
+        merged.update((key, value) for key, value in report.items() if key not in MERGED_LISTS)
         frames.update((entry["frame"], entry) for entry in report.get("frames", []))
         failed.update((entry["frame"], entry) for entry in report.get("failed_frames", []))
         warnings += [warning for warning in report.get("warnings", []) if warning not in warnings]
