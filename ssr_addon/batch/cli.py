@@ -126,12 +126,8 @@ def run(argv=None):
         return _preview(arguments)
     if arguments.command == "farm":
         return _farm(arguments)
-    request = RenderRequest(
-        out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
-        resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
-        frames=parse_frames(arguments.frames) if arguments.frames else None,
-        samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
-        on_error=arguments.on_error, overwrite=arguments.overwrite, warmup=arguments.warmup)
+    request = _render_request(arguments, frames=parse_frames(arguments.frames) if arguments.frames else None,
+                              overwrite=arguments.overwrite)
     scene_path = arguments.scene or bpy.data.filepath
     if not scene_path:
         raise SSRError("no SCENE given and Blender has no .blend file open")
@@ -160,15 +156,18 @@ def _compare(arguments):
         print(line)
 
 
+def _render_request(arguments, **fields):
+    """The RenderRequest the render options of ARGUMENTS (render's or farm's) ask for, with FIELDS."""
+    return RenderRequest(
+        out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
+        resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
+        samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
+        on_error=arguments.on_error, warmup=arguments.warmup, **fields)
+
+
 def _farm(arguments):
     frames = parse_frames(arguments.frames)
-    if arguments.warmup < 0:
-        raise SSRError(f"--warmup must be 0 or more frames, got {arguments.warmup}")
-    # Checked here, once, rather than by every chunk: the scene, its camera, the range, the words.
-    RenderRequest(out_dir=arguments.out, method=arguments.method, engine=arguments.engine,
-                  resolution=parse_resolution(arguments.resolution) if arguments.resolution else None,
-                  samples=arguments.samples, settings=ChainSettings().with_overrides(arguments.overrides),
-                  on_error=arguments.on_error)
+    _render_request(arguments)  # checked here, once, rather than by every chunk; so are the scene and range
     scene = load_scene(arguments.scene)
     require_camera(scene)
     frame_numbers(scene, frames)

@@ -1,5 +1,5 @@
 """`farm`: a shot split into chunks of frames, rendered by local processes, WORKERS at a time, into one
-folder, as a render farm's workers would render it (docs/farm.md).
+folder, as a render farm's workers would render it (docs/cli.md).
 
 Each chunk is one `render --frames A-B --warmup K` process: it renders the K frames before its
 first one without writing them, so its first frame carries an uninterrupted run's history, and

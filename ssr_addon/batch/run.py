@@ -40,8 +40,8 @@ class RenderRun:
     folder (run_report: resume a matching run, refuse a different one; other runs
     may write other frames of the shot there at the same time). `frames()` renders
     and writes the frames one at a time, yielding each (frame, images) once written,
-    so a modal operator can step it; the run's report is in `report`, the folder's
-    (report.json, every run's frames, rewritten after every frame) in `merged`.
+    so a modal operator can step it; the run's report is in `report` (the folder's
+    report.json, every run's frames, is rewritten after every frame).
     Before the first frame it renders, the run renders the request's warm-up frames
     without writing them, so that frame carries the history an uninterrupted run would.
     RENDER(scene, request, state, fallbacks) renders one frame (default render_frame; an
@@ -67,7 +67,6 @@ class RenderRun:
         self.todo = [f for f in self.frame_list if f not in kept]
         for frame in self.todo:  # what an interrupted run left of this run's frames
             remove_partials(frame_paths(request.out_dir, request.file_prefix, frame))
-        self.merged = None
         self.report = {
             "fingerprint": identity,
             "scene": scene_path, "method": request.method, "engine": request.engine, "samples": samples,
@@ -101,7 +100,7 @@ class RenderRun:
             if fallbacks is not None:
                 fallbacks.release()
         _summarise(self.report, self.log)
-        self.merged = self.records.write(self.report)
+        self.records.write(self.report)
         failed = self.report["failed_frames"]
         if failed:
             raise SSRError(f"{len(failed)} frame(s) failed: {', '.join(str(entry['frame']) for entry in failed)}")
@@ -130,7 +129,7 @@ class RenderRun:
                 self.report["failed_frames"].append({"frame": frame, "error": str(error)})
                 state.reset_history()
                 progress.frame_done(frame, "failed")
-                self.merged = self.records.write(self.report)
+                self.records.write(self.report)
                 continue
             self._record(frame, images, timer, progress)
             yield frame, images
@@ -165,7 +164,7 @@ class RenderRun:
                                  "render_ms": stages["render"], "addon_ms": round(own_ms, 3),
                                  **images.stats})
         report["frames"].sort(key=lambda entry: entry["frame"])
-        self.merged = self.records.write(report)
+        self.records.write(report)
         progress.frame_done(frame, f"render {stages['render'] / 1000:.1f} s + add-on {own_ms / 1000:.2f} s")
 
 

@@ -215,12 +215,10 @@ class FolderRecords:
 
     def write(self, report):
         """Record REPORT's entries for this run's frames, then rewrite report.json as the merge of
-        every run's record; returns that merge."""
+        every run's record."""
         with self.locked():
             self._write_record(report)
-            merged = read_report(self.out_dir)
-            write_json(os.path.join(self.out_dir, REPORT_NAME), merged)
-        return merged
+            write_json(os.path.join(self.out_dir, REPORT_NAME), read_report(self.out_dir))
 
     def _write_record(self, report):
         record = {**report, "runs": [{**self.machine, "blender": report.get("blender"), "gpu": report.get("gpu")}],

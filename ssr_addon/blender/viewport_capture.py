@@ -74,17 +74,11 @@ class ViewportCapture:
             warnings = add_material_aovs(scene, view_layer, changes)
             view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
             wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if split.needs_shadow_pass else {}))
-            samples = scene.eevee.taa_samples
-            changes.set(scene.eevee, "taa_samples", samples)
-            layers = {}
-            for name, render_pass in wanted.items():
-                # A draw renders every one of the viewport's samples: one is enough where it gives the
-                # value all of them average (0 would mean unlimited).
-                scene.eevee.taa_samples = 1 if name in ONE_SAMPLE_PASSES else samples
-                # A render's passes have three channels but Combined: so do these.
-                layers[name] = self._draw(scene, view_layer, view, projection, render_pass,
-                                          4 if name == "Combined" else 3)
-            scene.eevee.taa_samples = samples
+            # A render's passes have three channels but Combined: so do these.
+            layers = self.draw_passes(scene, view_layer, view_matrix, projection_matrix, size, {
+                name: (render_pass, 4 if name == "Combined" else 3,
+                       1 if name in ONE_SAMPLE_PASSES else scene.eevee.taa_samples)
+                for name, render_pass in wanted.items()})
             lap(timer, "capture")
             layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
             surface = surface_layers(layers)

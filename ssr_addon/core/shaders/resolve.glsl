@@ -86,11 +86,12 @@ void main()
   ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
   ivec2 trace_size = ivec2(params.trace_size);
   int ray_count = params.resolve_samples;
+  float iterations = accumulated_iterations(pixel);
   /* A ray stands for one of the N rays of every iteration the history averages here. */
-  float rays_averaged = float(ray_count) * accumulated_iterations(pixel);
+  float rays_averaged = float(ray_count) * iterations;
   /* The history averages a bright ray's excess over the iterations it holds, so the guard needs
    * to compress only that share: at full strength it would keep a lamp's glint dim forever. */
-  float guard = params.use_firefly_guard != 0 ? 1.0 / accumulated_iterations(pixel) : 0.0;
+  float guard = params.use_firefly_guard != 0 ? 1.0 / iterations : 0.0;
   float n_dot_v = dot(normal, to_eye);
 
   vec3 radiance_sum = vec3(0.0);
