@@ -20,7 +20,8 @@ from ssr_addon.batch.request import parse_resolution
 from ssr_addon.blender.colour_management import DisplayTransform
 from ssr_addon.blender.gpu_context import ensure_backend
 from ssr_addon.blender.scene_io import load_scene
-from ssr_addon.core.gpu_backend import StageTimer, TexturePool, describe_gpu, upload
+from ssr_addon.core.gpu_backend import StageTimer, TexturePool, describe_gpu, download, upload
+from ssr_addon.core.progressive import STEP_SECONDS, ProgressiveView
 from ssr_addon.core.settings import ChainSettings
 from ssr_addon.ui.live import draw_image
 from .bench.scenes import REPO, resolve_scene
@@ -97,3 +98,40 @@ def main(argv):
     print(text)
     if arguments.page:
         rewrite_block(arguments.page, arguments.block, text, "Live SSR in the viewport")
+
+
+def reflective_mask(passes):
+    """The reflective pixels, as the bench counts them: smooth enough for SSR, visibly specular."""
+    return (passes.roughness <= 0.5) & (passes.specular_color.mean(axis=-1) >= 0.1) & (passes.depth < 1e9)
+
+
+def orbit_quality(scene, folder, settings, resolution, views):
+    """Preview SCENE's camera view, then orbit it VIEWS views (preview --orbit); per orbit view, the
+    error on the reflective pixels (relative L1) against a converged still of that view, of the
+    moving view, of one iteration of its own one-sample passes without history and of EEVEE's image
+    without SSR; and the orbit's
+    flicker: the mean change, from one view to the next, of the moving view's difference from the
+    converged still, relative to the reflective pixels' brightness (what changes that the stills
+    do not change). Returns (timings, rows, flicker)."""
+    rows, errors = [], []
+
+    def measure(index, passes, outputs, recapture):
+        moving = download(outputs["final"])[..., :3]
+        alone = download(ProgressiveView(passes, settings).step(max_iterations=1)["final"])[..., :3]
+        still_passes = recapture()
+        still = ProgressiveView(still_passes, settings)
+        while not still.done:
+            still.step(STEP_SECONDS)
+        reference = download(still.outputs["final"])[..., :3]
+        mask = reflective_mask(still_passes)
+        level = np.abs(reference[mask]).sum()
+        rows.append({"view": index, "moving": float(np.abs(moving - reference)[mask].sum() / level),
+                     "without_history": float(np.abs(alone - reference)[mask].sum() / level),
+                     "without_ssr": float(np.abs(still_passes.combined[..., :3] - reference)[mask].sum() / level),
+                     "still_iterations": still.iterations})
+        errors.append((moving - reference, mask, float(reference[mask].mean())))
+
+    timings = run_preview(scene, folder, settings, resolution, orbit=views, log=lambda line: None, on_view=measure)
+    changes = [np.abs(after - before)[mask_before & mask_after].mean() / max(level, 1e-6)
+               for (before, mask_before, level), (after, mask_after, _) in zip(errors, errors[1:])]
+    return timings, rows, float(np.mean(changes)) if changes else None

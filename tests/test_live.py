@@ -125,19 +125,52 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
     finally:
         scene.view_settings.exposure -= 1.0
 
-    space.region_3d.view_location += mathutils.Vector((0.2, 0.0, 0.0))  # orbiting: the history is the old view's
+    aovs, nodes, samples = len(scene.view_layers[0].aovs), _material_nodes(), scene.eevee.taa_samples
+    space.region_3d.view_location += mathutils.Vector((0.05, 0.0, 0.0))  # orbiting: followed at once
+    draws = session.capture.draws
     assert session.tick(scene, now=clock[0] + 2) is True
-    assert session.texture is None and "waiting" in session.status
-    _tick_until(session, scene, clock, lambda: session.texture is not None)
-    assert session._view.iterations == 1  # started over
+    assert session.texture is not None and "moving" in session.status, session.status
+    assert session._view.iterations == 1 and session._view.state.sequence.has_history  # the last view's, reprojected
+    assert scene.eevee.taa_samples == samples and session.capture.draws > draws
+    assert session.tick(scene, now=clock[0] + 2 + DEBOUNCE_S / 2) is False  # holding: not yet refined
+    assert len(scene.view_layers[0].aovs) > aovs  # the capture's set-up is held while the view moves...
+    assert session.tick(scene, now=clock[0] + 2.01 + DEBOUNCE_S) is True and "iterations" in session.status
+    assert (len(scene.view_layers[0].aovs), _material_nodes()) == (aovs, nodes)  # ...and put back once it holds
 
+    draws = session.capture.draws
     thickness = scene.ssr.thickness
-    scene.ssr.thickness = thickness * 2  # a setting changes: restart too
+    scene.ssr.thickness = thickness * 2  # a setting the chain alone reads: re-run on the same passes
     try:
-        assert session.tick(scene, now=clock[0] + 10) is True and session.texture is None
+        assert session.tick(scene, now=clock[0] + 10) is True and session.texture is not None
+        assert session.capture.draws == draws and session._view.iterations >= 1
     finally:
         scene.ssr.thickness = thickness
         session.release()
+
+
+def _material_nodes():
+    return sorted((material.name, len(material.node_tree.nodes)) for material in bpy.data.materials
+                  if material.node_tree is not None)
+
+
+def test_an_orbit_shows_ssr_in_every_view_and_history_only_helps(live_view, tmp_path):
+    """preview --orbit: each moving view, shown after one iteration from the last view's history, is
+    nearer a converged still of that view than one iteration of its own passes without history,
+    SSR shows in every view, and the orbit flickers within the stability suite's limit."""
+    from lab.bench.stability import FLICKER_LIMIT
+    from lab.live_latency import orbit_quality
+    from ssr_addon.core.settings import ChainSettings
+    scene, _, _ = live_view
+    timings, rows, flicker = orbit_quality(scene, tmp_path, ChainSettings(), (160, 90), 4)
+    assert [row["view"] for row in rows] == [1, 2, 3, 4]
+    for row in rows:
+        assert row["moving"] <= row["without_history"], rows
+        assert row["moving"] <= 0.1 < row["without_ssr"], rows  # the preview's bound; SSR shows
+    assert flicker <= FLICKER_LIMIT
+    assert all(view["history"] and view["draws"] >= 6 for view in timings["orbit"])
+    assert timings["orbit_updates_per_second"] > 0
+    assert all((tmp_path / "orbit" / f"view_{index:02d}.{extension}").is_file()
+               for index in range(1, 5) for extension in ("exr", "png"))
 
 
 def test_the_draw_handler_draws_the_sessions_image(live_view):
@@ -215,14 +248,23 @@ def test_data_passes_are_drawn_at_one_sample_and_the_samples_restored(live_view,
     monkeypatch.setattr(ViewportCapture, "_draw", counting_draw)
     session = LiveSession(space, region, space.region_3d)
     clock = [0.0]
+    aovs, nodes = len(scene.view_layers[0].aovs), _material_nodes()
     try:
         _tick_until(session, scene, clock, lambda: drawn)
         samples = dict(drawn)
         assert {samples[name] for name in ("NORMAL", "POSITION", "SPECULAR_COLOR")} == {1}, drawn
         assert samples["COMBINED"] == samples["SPECULAR_LIGHT"] == 6, drawn
         assert scene.eevee.taa_samples == 6
+        drawn.clear()
+        space.region_3d.view_location += mathutils.Vector((0.02, 0.0, 0.0))  # moving: every pass at one sample
+        _tick_until(session, scene, clock, lambda: drawn)
+        assert {samples for _, samples in drawn} == {1} and scene.eevee.taa_samples == 6, drawn
         fail_at.append("SPECULAR_LIGHT")  # after the one-sample Normal and Position
-        session.release()
+        space.region_3d.view_location += mathutils.Vector((0.02, 0.0, 0.0))
+        with pytest.raises(SSRError, match="SPECULAR_LIGHT"):  # a moving view's capture fails halfway
+            session.tick(scene, now=clock[0] + 1.0)
+        session.release()  # as the operator stops it
+        assert (len(scene.view_layers[0].aovs), _material_nodes(), scene.eevee.taa_samples) == (aovs, nodes, 6)
         session = LiveSession(space, region, space.region_3d)
         with pytest.raises(SSRError, match="SPECULAR_LIGHT"):
             _tick_until(session, scene, clock, lambda: False)

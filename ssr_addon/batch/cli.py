@@ -104,6 +104,9 @@ def build_parser():
                                                       "preview.json")
     preview.add_argument("--resolution", help="WIDTHxHEIGHT (default: the scene's)")
     preview.add_argument("--iterations", type=int, help="stop after this many iterations (default: when converged)")
+    preview.add_argument("--orbit", type=int, default=0, metavar="N",
+                         help="then orbit the camera's target N views, each shown as the live view shows a moving "
+                              "view (orbit/view_KK.exr and .png)")
     preview.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                          help="override a chain setting (repeatable)")
     return parser
@@ -178,10 +181,12 @@ def _farm(arguments):
 def _preview(arguments):
     if arguments.iterations is not None and arguments.iterations < 1:
         raise SSRError(f"--iterations must be at least 1, got {arguments.iterations}")
+    if arguments.orbit < 0:
+        raise SSRError(f"--orbit must be 0 or more views, got {arguments.orbit}")
     settings = ChainSettings().with_overrides(arguments.overrides)
     resolution = parse_resolution(arguments.resolution) if arguments.resolution else None
     scene = load_scene(arguments.scene)
-    return run_preview(scene, arguments.out, settings, resolution, arguments.iterations)
+    return run_preview(scene, arguments.out, settings, resolution, arguments.iterations, arguments.orbit)
 
 
 class _Terminated(BaseException):

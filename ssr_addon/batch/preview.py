@@ -1,16 +1,25 @@
-"""`python -m ssr_addon preview SCENE --out DIR`: what the live viewport shows, headless.
+"""`python -m ssr_addon preview SCENE --out DIR [--orbit N]`: what the live viewport shows, headless.
 
 The scene camera's view is captured through the startup file's 3D View exactly as
 the live mode captures the user's (viewport_capture), in Rendered shading with EEVEE,
-then refined step by step as the live view refines it (progressive), until it converges
-or reaches --iterations.
+then refined step by step as the live view refines a view that holds (progressive), until
+it converges or reaches --iterations.
 Writes preview.exr and preview.png (converged), first.png (the first image the live
 view would show) and preview.json (timings: time to the first image, capture and
 chain milliseconds per iteration; the capture's include the upload and any lamps-only draw,
 the chain's the analytic lamp split and the pyramids).
+
+With --orbit N the camera then orbits its target (the surface at the frame's centre) about
+the vertical, ORBIT_STEP_DEGREES a view, as an artist orbiting the 3D View: each view is
+captured at one sample and shown after one iteration from the last view's history, as the
+live view follows a moving view. Writes orbit/view_KK.exr and .png per view, and each view's
+timings (capture, draws, chain) and the updates per second into preview.json.
 """
+import math
 import os
 import time
+
+import numpy as np
 
 from ..blender.colour_management import write_display_png
 from ..blender.gpu_context import ensure_backend
@@ -19,19 +28,26 @@ from ..blender.render_setup import render_size, rendered_view_layer
 from ..blender.scene_io import camera_matrices, require_camera
 from ..blender.viewport_capture import ViewportCapture, headless_view3d
 from ..core.gpu_backend import StageTimer, download
-from ..core.progressive import STEP_SECONDS, ProgressiveView
+from ..core.inputs import BACKGROUND_DEPTH
+from ..core.progressive import STEP_SECONDS, NavigatedViews
 from .outputs import prepare_output_folder, write_json, write_rgba_exr, written_together
 
+ORBIT_STEP_DEGREES = 1.0  # a slow orbit: a few pixels of motion a view at the frame's centre
+ORBIT_SAMPLES = 1         # viewport samples of an orbit view's capture, as the live view's while moving
 
-def run_preview(scene, out_dir, settings, resolution=None, iterations=None, log=print):
+
+def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbit=0, log=print, on_view=None):
     """Capture SCENE's camera view at RESOLUTION (default: the scene's) and refine it until it
-    converges or has run ITERATIONS; write the images and timings into OUT_DIR; returns the timings."""
+    converges or has run ITERATIONS; then ORBIT views around it; write the images and timings into
+    OUT_DIR; returns the timings. ON_VIEW(k, passes, ChainOutputs, recapture), if given, sees each
+    orbit view (k from 1); recapture(samples) captures the view again at SAMPLES (None: the scene's)."""
     camera = require_camera(scene)
     size = render_size(scene, resolution)
     prepare_output_folder(out_dir)
     space, region = headless_view3d()
     view_layer = rendered_view_layer(scene)
     view, projection = camera_matrices(scene, *size)
+    clip = camera.data.clip_start, camera.data.clip_end
     ensure_backend()
     capture = ViewportCapture(space, region)
     with TemporaryChanges() as changes:
@@ -40,18 +56,25 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, log=
         started = time.perf_counter()
         capture_timer = StageTimer()
         try:
-            passes = capture.capture(scene, view_layer, view, projection, size,
-                                     (camera.data.clip_start, camera.data.clip_end), settings.lamp_split,
+            passes = capture.capture(scene, view_layer, view, projection, size, clip, settings.lamp_split,
                                      capture_timer)
+            views = NavigatedViews(settings)
+            refining = views.view(passes, inputs_timer=capture_timer, follow=False)
+            first = download(refining.step()["final"])
+            first_image_ms = (time.perf_counter() - started) * 1000.0
+            while not refining.done and (iterations is None or refining.iterations < iterations):
+                refining.step(STEP_SECONDS, None if iterations is None else iterations - refining.iterations)
+            converged_ms = (time.perf_counter() - started) * 1000.0
+            final = download(refining.outputs["final"])
+            orbit_views = []
+            if orbit:
+                os.makedirs(os.path.join(out_dir, "orbit"), exist_ok=True)
+                capture.hold_set_up(scene, view_layer, changes)
+                for index, orbit_view in enumerate(orbit_view_matrices(view, target_distance(passes), orbit), 1):
+                    orbit_views.append(_orbit_view(scene, capture, views, view_layer, index, orbit_view, projection,
+                                                   size, clip, settings, out_dir, on_view))
         finally:
             capture.release()
-    refining = ProgressiveView(passes, settings, inputs_timer=capture_timer)
-    first = download(refining.step()["final"])
-    first_image_ms = (time.perf_counter() - started) * 1000.0
-    while not refining.done and (iterations is None or refining.iterations < iterations):
-        refining.step(STEP_SECONDS, None if iterations is None else iterations - refining.iterations)
-    converged_ms = (time.perf_counter() - started) * 1000.0
-    final = download(refining.outputs["final"])
     chain_ms = sum(refining.timer.milliseconds.values())
     timings = {
         "resolution": list(size),
@@ -64,6 +87,10 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, log=
         "chain_stages_ms": {stage: round(ms, 2) for stage, ms in refining.timer.milliseconds.items()},
         "material_warnings": list(passes.material_warnings),
     }
+    if orbit_views:
+        timings["orbit"] = orbit_views
+        timings["orbit_updates_per_second"] = round(
+            len(orbit_views) * 1000.0 / sum(view["time_to_image_ms"] for view in orbit_views), 3)
     paths = [os.path.join(out_dir, name) for name in ("preview.exr", "preview.png", "first.png")]
     with written_together(paths) as (exr, png, first_png):
         write_rgba_exr(exr, final)
@@ -74,4 +101,60 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, log=
         f"({'converged' if refining.done else 'not converged'}) in {converged_ms / 1000:.2f} s; "
         f"capture {sum(capture_timer.milliseconds.values()):.0f} ms, "
         f"chain {timings['chain_ms_per_iteration']:.1f} ms per iteration")
+    if orbit_views:
+        log(f"orbit: {len(orbit_views)} views, {timings['orbit_updates_per_second']:.2f} updates per second "
+            f"({orbit_views[-1]['draws']} draws at {ORBIT_SAMPLES} sample each)")
     return timings
+
+
+def _orbit_view(scene, capture, views, view_layer, index, view, projection, size, clip, settings, out_dir, on_view):
+    """Capture and show orbit view INDEX as the live view follows a moving view; write its images
+    and return its timings."""
+    started = time.perf_counter()
+    timer = StageTimer()
+    draws = capture.draws
+    passes = capture.capture(scene, view_layer, view, projection, size, clip, settings.lamp_split, timer,
+                             ORBIT_SAMPLES)
+    following = views.view(passes, inputs_timer=timer)
+    outputs = following.step(max_iterations=1)
+    image = download(outputs["final"])
+    time_to_image_ms = (time.perf_counter() - started) * 1000.0
+    if on_view is not None:
+        on_view(index, passes, outputs, lambda samples=None: capture.capture(
+            scene, view_layer, view, projection, size, clip, settings.lamp_split, samples=samples))
+    paths = [os.path.join(out_dir, "orbit", f"view_{index:02d}.{extension}") for extension in ("exr", "png")]
+    with written_together(paths) as (exr, png):
+        write_rgba_exr(exr, image)
+        write_display_png(png, image, scene)
+    return {"view": index, "time_to_image_ms": round(time_to_image_ms, 1),
+            "capture_ms": round(sum(timer.milliseconds.values()), 1), "draws": capture.draws - draws,
+            "chain_ms": round(sum(following.timer.milliseconds.values()), 1),
+            "history": following.state.sequence.has_history}
+
+
+def target_distance(passes):
+    """How far along the view axis the camera's target lies: the median depth of the surfaces in
+    the middle fifth of the frame, or of all of them where the middle shows the world."""
+    height, width = passes.depth.shape
+    middle = passes.depth[2 * height // 5:3 * height // 5 + 1, 2 * width // 5:3 * width // 5 + 1]
+    for depths in (middle, passes.depth):
+        surface = depths[depths < BACKGROUND_DEPTH]
+        if surface.size:
+            return float(np.median(surface))
+    return passes.clip_end * 0.5
+
+
+def orbit_view_matrices(view_matrix, distance, count, step_degrees=ORBIT_STEP_DEGREES):
+    """World-to-view matrices of COUNT views orbiting, STEP_DEGREES apart, about the vertical (world
+    z) through the point DISTANCE ahead of the camera of VIEW_MATRIX, starting one step from it."""
+    camera = np.linalg.inv(np.asarray(view_matrix, np.float64))
+    target = camera @ np.array([0.0, 0.0, -distance, 1.0])
+    to_target, from_target = np.eye(4), np.eye(4)
+    to_target[:3, 3], from_target[:3, 3] = target[:3], -target[:3]
+    matrices = []
+    for step in range(1, count + 1):
+        angle = math.radians(step_degrees * step)
+        turn = np.eye(4)
+        turn[:2, :2] = [[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]]
+        matrices.append(np.linalg.inv(to_target @ turn @ from_target @ camera).astype(np.float32))
+    return matrices

@@ -12,9 +12,12 @@ class TemporaryChanges:
         self._undo = []
 
     def set(self, owner, attribute, value):
+        """Set OWNER.ATTRIBUTE to VALUE, to be put back; a property already at the value it gets is
+        not written: Blender runs a property's update even then, and an update of the scene or the
+        3D View starts EEVEE's viewport engine afresh."""
         old = getattr(owner, attribute)
-        self._undo.append(lambda: setattr(owner, attribute, old))
-        setattr(owner, attribute, value)
+        self._undo.append(lambda: _assign(owner, attribute, old))
+        _assign(owner, attribute, value)
 
     def set_all(self, owner, **values):
         """Set several attributes of OWNER in the given order (media type before format...), and
@@ -43,3 +46,12 @@ class TemporaryChanges:
     def __exit__(self, *exc_info):
         self.restore()
         return False
+
+
+def _assign(owner, attribute, value):
+    try:
+        same = bool(getattr(owner, attribute) == value)
+    except (TypeError, ValueError):  # values that do not compare as one truth
+        same = False
+    if not same:
+        setattr(owner, attribute, value)

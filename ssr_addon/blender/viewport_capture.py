@@ -61,23 +61,28 @@ class ViewportCapture:
     def __init__(self, space, region):
         self.space, self.region = space, region
         self._offscreen = None
+        self.draws = 0  # draws so far: what a capture costs
+        self._held_warnings = None  # the material warnings of a set-up held over captures (hold_set_up)
 
-    def capture(self, scene, view_layer, view_matrix, projection_matrix, size, clip, lamp_split="auto", timer=None):
+    def capture(self, scene, view_layer, view_matrix, projection_matrix, size, clip, lamp_split="auto", timer=None,
+                samples=None):
         """RenderPasses of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX (4x4 arrays) at SIZE
-        (width, height); CLIP is (clip_start, clip_end). TIMER gets "capture", and "lamp_split"
-        where the lamps are drawn alone."""
+        (width, height); CLIP is (clip_start, clip_end). The noisy passes are drawn at SAMPLES
+        (default: the scene's viewport samples), the others at one. TIMER gets "capture", and
+        "lamp_split" where the lamps are drawn alone."""
+        samples = samples or scene.eevee.taa_samples
         split = decide_lamp_split(scene, "eevee", lamp_split)
         view, projection = _matrix(view_matrix), _matrix(projection_matrix)
         with TemporaryChanges() as changes:
             self._prepare(scene, size, changes)
-            use_eevee_raytracing(scene, SSR_BASE_RAYTRACING, changes)
-            warnings = add_material_aovs(scene, view_layer, changes)
-            view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
+            warnings = self._held_warnings
+            if warnings is None:
+                warnings = self._set_up(scene, view_layer, changes)
             wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if split.needs_shadow_pass else {}))
             # A render's passes have three channels but Combined: so do these.
             layers = self.draw_passes(scene, view_layer, view_matrix, projection_matrix, size, {
                 name: (render_pass, 4 if name == "Combined" else 3,
-                       1 if name in ONE_SAMPLE_PASSES else scene.eevee.taa_samples)
+                       1 if name in ONE_SAMPLE_PASSES else samples)
                 for name, render_pass in wanted.items()})
             lap(timer, "capture")
             layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
@@ -86,6 +91,7 @@ class ViewportCapture:
             def rendered_lamp_specular(shadows):
                 with TemporaryChanges() as lamp_only:
                     lamps_alone(scene, lamp_only, shadows)
+                    lamp_only.set(scene.eevee, "taa_samples", samples)
                     view_layer.update()
                     specular = self._draw(scene, view_layer, view, projection, "SPECULAR_LIGHT", 3)
                 view_layer.update()
@@ -97,7 +103,21 @@ class ViewportCapture:
             lamp_light, lamps = eevee_lamp_light(split, layers, rendered_lamp_specular)
         view_layer.update()
         return passes_from_layers(layers, surface, layers["Glossy Direct"], lamp_light, view_array, projection_array,
-                                  clip, "eevee", scene.eevee.taa_samples, warnings, lamps)
+                                  clip, "eevee", samples, warnings, lamps)
+
+    def hold_set_up(self, scene, view_layer, changes):
+        """Through CHANGES, keep SCENE set up for captures (the AOVs wired into its materials,
+        EEVEE's ray tracing as SSR's base) for as long as CHANGES holds: wiring and unwiring
+        every material each capture makes EEVEE sync them all anew, most of a one-sample capture."""
+        self._held_warnings = self._set_up(scene, view_layer, changes)
+        changes.on_restore(lambda: setattr(self, "_held_warnings", None))
+
+    @staticmethod
+    def _set_up(scene, view_layer, changes):
+        use_eevee_raytracing(scene, SSR_BASE_RAYTRACING, changes)
+        warnings = add_material_aovs(scene, view_layer, changes)
+        view_layer.update()  # the viewport engine sees the new AOVs only once evaluated
+        return warnings
 
     def draw_passes(self, scene, view_layer, view_matrix, projection_matrix, size, passes):
         """{name: (H, W, channels)} of SCENE seen through VIEW_MATRIX and PROJECTION_MATRIX at SIZE:
@@ -112,6 +132,7 @@ class ViewportCapture:
             for name, (render_pass, channels, samples) in passes.items():
                 if scene.eevee.taa_samples != samples:
                     scene.eevee.taa_samples = samples  # 0 would mean unlimited
+                    view_layer.update()  # else every draw after it syncs the whole scene anew
                 layers[name] = self._draw(scene, view_layer, view, projection, render_pass, channels)
         return layers
 
@@ -154,6 +175,7 @@ class ViewportCapture:
         """One pass of the view as an (H, W, CHANNELS) array in image order."""
         if self.space.shading.render_pass != render_pass:
             self.space.shading.render_pass = render_pass
+        self.draws += 1
         try:
             self._offscreen.draw_view3d(scene, view_layer, self.space, self.region, view, projection,
                                         do_color_management=False)

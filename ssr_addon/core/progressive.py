@@ -1,15 +1,19 @@
 """A still view refined while it holds: the chain on one captured view, a few iterations
-at a time, stopping where a still render stops (chain.FrameRun.next_batch).
+at a time, stopping where a still render stops (chain.FrameRun.next_batch); and a view on the
+move, refined from the history of the views before it (NavigatedViews).
 
 The live viewport mode draws its image after every step; the `preview` command
 steps it headless. Both reach exactly the iterations `render --method ssr` runs for
 the same view, so a converged preview is that render's SSR.
 """
 import time
+from dataclasses import replace
+
+import numpy as np
 
 from .chain import ChainState, FrameRun
 from .gpu_backend import StageTimer
-from .inputs import ChainInputs
+from .inputs import BACKGROUND_DEPTH, ChainInputs
 
 STEP_SECONDS = 0.05  # a step after the first adds iterations for about this long (the live view's tick)
 
@@ -17,17 +21,20 @@ STEP_SECONDS = 0.05  # a step after the first adds iterations for about this lon
 class ProgressiveView:
     """The chain on PASSES (RenderPasses of one view) with SETTINGS, stepped until done.
 
-    POOL (a gpu_backend.TexturePool) is reused from the view before, so a new view
-    allocates nothing. INPUTS_TIMER (a StageTimer, the capture's) gets the upload;
+    A still (nothing carries over) unless STATE, a ChainState the caller has begun the view in,
+    holds the history of the views before (NavigatedViews). POOL (a gpu_backend.TexturePool)
+    is reused from the view before, so a new view allocates nothing. INPUTS_TIMER (a StageTimer, the capture's) gets the upload;
     `timer` holds the chain's stage times of every step so far, the frame's own passes
     (lamp split, pyramids) included. The GPU backend must be up.
     """
 
-    def __init__(self, passes, settings, pool=None, inputs_timer=None):
-        self.state = ChainState.still()
-        if pool is not None:
-            self.state.pool = pool
-        self.state.begin_frame(0)
+    def __init__(self, passes, settings, pool=None, inputs_timer=None, state=None):
+        if state is None:
+            state = ChainState.still()
+            if pool is not None:
+                state.pool = pool
+            state.begin_frame(0)
+        self.state = state
         self.settings = settings
         inputs = ChainInputs.from_passes(passes, settings, inputs_timer)
         self.timer = StageTimer()
@@ -60,3 +67,67 @@ class ProgressiveView:
                     break
             self.outputs = self.run.composite()
         return self.outputs
+
+
+def camera_motion(depth, view_matrix, projection_matrix, previous_world_to_clip):
+    """The Vector pass of a still scene seen by a moving camera: per pixel of DEPTH ((H, W)
+    view-axis distances, image order; BACKGROUND_DEPTH for the world), the screen offset in
+    pixels, y up, to where the camera before (PREVIOUS_WORLD_TO_CLIP) saw the same point. The
+    world moves by direction alone. Returns ((H, W, 2) float32, the share of surface pixels the
+    camera before saw on its screen)."""
+    height, width = depth.shape
+    columns, rows = np.meshgrid(np.arange(width), np.arange(height))
+    uv = np.stack([(columns + 0.5) / width, (height - rows - 0.5) / height], axis=-1)
+    ndc = np.concatenate([uv * 2.0 - 1.0, np.full((height, width, 1), -1.0), np.ones((height, width, 1))], axis=-1)
+    direction = ndc @ np.linalg.inv(np.asarray(projection_matrix, np.float64)).T
+    direction = direction[..., :3] / direction[..., 3:]
+    surface = depth < BACKGROUND_DEPTH
+    # A surface point lies DEPTH along the view axis (-z); the world, at infinity, is a direction.
+    point = np.where(surface[..., None], direction * (depth / -direction[..., 2])[..., None], direction)
+    homogeneous = np.concatenate([point, surface[..., None].astype(np.float64)], axis=-1)
+    world_to_clip = np.asarray(previous_world_to_clip, np.float64) @ np.linalg.inv(
+        np.asarray(view_matrix, np.float64))
+    clip = homogeneous @ world_to_clip.T
+    with np.errstate(divide="ignore", invalid="ignore"):
+        previous_uv = np.where(clip[..., 3:] > 0.0, clip[..., :2] / clip[..., 3:] * 0.5 + 0.5, np.nan)
+    seen = surface & np.all((previous_uv >= 0.0) & (previous_uv <= 1.0), axis=-1)
+    motion = (previous_uv - uv) * (width, height)
+    share = float(seen.sum() / surface.sum()) if surface.any() else 0.0
+    return np.nan_to_num(motion, nan=1e6).astype(np.float32), share
+
+
+class NavigatedViews:
+    """The views of a camera on the move over a still scene, each from a capture of its own,
+    refined from the last one's history as an animation's frames are: the history is reprojected
+    through the camera's motion (camera_motion) and each view's first image costs one iteration.
+    The history is dropped where reprojection cannot hold it: the camera before saw less than
+    MIN_SHARED_VIEW of what this view shows (a cut), or the caller says so (forget: the scene or
+    a setting changed). POOL as ProgressiveView's."""
+
+    MIN_SHARED_VIEW = 0.5
+
+    def __init__(self, settings, pool=None):
+        self.settings = settings
+        self.state = ChainState()
+        if pool is not None:
+            self.state.pool = pool
+        self._views = 0
+
+    def forget(self):
+        self.state.reset_history()
+
+    def view(self, passes, inputs_timer=None, follow=True):
+        """Start a ProgressiveView of PASSES (a capture with no motion of its own) after the views
+        before: FOLLOW, from their history; otherwise as a still, whose history the next view follows."""
+        state = self.state
+        if not follow:
+            self.forget()
+        elif state.previous_world_to_clip is not None:
+            motion, shared = camera_motion(passes.depth, passes.view_matrix, passes.projection_matrix,
+                                           state.previous_world_to_clip)
+            passes = replace(passes, motion=motion)
+            if shared < self.MIN_SHARED_VIEW:
+                self.forget()
+        state.begin_frame(self._views)  # the first view draws a still's own rays (ProgressiveView)
+        self._views += 1
+        return ProgressiveView(passes, self.settings, inputs_timer=inputs_timer, state=state)

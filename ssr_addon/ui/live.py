@@ -1,11 +1,13 @@
 """The SSR tab's "Live" toggle: live SSR in one 3D View (live_session.LiveSession).
 
 A modal operator owns the session: its window timer ticks it, Esc or the toggle
-stops it. A POST_PIXEL handler draws the session's image over its region. A
-depsgraph handler counts scene changes, which restart the session's view (the
-session absorbs those its own capture makes). Opening a file stops it.
+stops it. A POST_PIXEL handler draws the session's image over its region and times the draw. A
+depsgraph handler reports scene changes (LiveSession.scene_updated), which drop the view's
+history (the session absorbs those its own capture makes). Opening a file stops it.
 Stopping removes the timer; unregistering stops the session and removes every handler.
 """
+import time
+
 import bpy
 import gpu
 from gpu_extras.presets import draw_texture_2d
@@ -42,14 +44,16 @@ def draw_image(texture, width, height):
 def draw_live():
     session = _session
     if session is not None and bpy.context.region == session.region:
+        started = time.perf_counter()
         draw_session(session)
+        session.draw_ms = (time.perf_counter() - started) * 1000.0
 
 
 @bpy.app.handlers.persistent  # app handlers are dropped on file load unless persistent
 def _scene_changed(scene, depsgraph):
     session = _session
     if session is not None:
-        session.scene_version += 1
+        session.scene_updated(scene, all(isinstance(update.id, bpy.types.Scene) for update in depsgraph.updates))
 
 
 @bpy.app.handlers.persistent

@@ -1,21 +1,26 @@
-"""Live SSR in one 3D View: capture once the view holds still, then refine step by step.
+"""Live SSR in one 3D View: SSR follows the view as it moves, and refines once it holds.
 
 A LiveSession is driven by `tick` (from a timer, never from a draw callback, where
 EEVEE cannot draw offscreen); its `texture` is what ui.live's POST_PIXEL handler draws
 over the view. It never reads bpy.context: the caller hands in the scene and the time.
 
-- While the view, the scene or a setting keeps changing, nothing is drawn: a stale
-  image over a moving view misleads more than none.
-- Once the view has held for DEBOUNCE_S, the passes are captured (viewport_capture)
-  and a ProgressiveView starts: each tick adds iterations for about STEP_SECONDS and
-  the image refines until it stops where a still render stops.
-- Any change restarts it: the history belongs to one view.
+- Each tick where the view moved, the view is captured at one sample (viewport_capture)
+  and its first image costs one trace iteration, the history of the view before
+  reprojected through the camera's motion as an animation's next frame is
+  (progressive.NavigatedViews): SSR shows while the artist orbits.
+- Once the view has held for DEBOUNCE_S, it is captured at the scene's viewport samples
+  and refined as a still (progressive.ProgressiveView): each tick adds iterations for about
+  STEP_SECONDS until it stops where a still render stops.
+- History is dropped where it cannot hold: a jump the reprojection cannot follow, an edit of
+  the scene (scene_updated), a setting of the chain; a setting the chain alone reads re-runs
+  the chain on the captured passes, without a new capture.
 The comparison modes (SSR, cubemap, planar, none) and the debug views apply as in
-renders: a baseline mode shows EEVEE's own image with the baseline set up. Images are shown
-through the scene's colour management (blender.colour_management), as the 3D View shows EEVEE's; debug
-views, which are data, with the plain sRGB curve.
+renders: a baseline mode shows EEVEE's own image with the baseline set up, once the view
+holds. Images are shown through the scene's colour management (blender.colour_management), as
+the 3D View shows EEVEE's; debug views, which are data, with the plain sRGB curve.
 """
 import time
+from collections import deque
 from dataclasses import astuple
 
 import numpy as np
@@ -29,11 +34,13 @@ from ..blender.viewport_capture import ViewportCapture, capture_problem
 from ..core.errors import SSRError
 from ..core.gpu_backend import StageTimer, TexturePool, upload
 from ..core.layers import DEBUG_VIEW_LAYERS, debug_pixels, read_layers
-from ..core.progressive import STEP_SECONDS, ProgressiveView
+from ..core.progressive import STEP_SECONDS, NavigatedViews
 from .properties import chain_settings
 
-DEBOUNCE_S = 0.3       # the view must hold this long before a capture starts
+DEBOUNCE_S = 0.3       # the view must hold this long before it is captured at the scene's samples
 TICK_INTERVAL_S = 0.1  # how often the caller should tick
+MOVING_SAMPLES = 1     # viewport samples of a capture while the view moves
+RATE_WINDOW = 5        # updates the rate while moving is measured over
 
 
 class LiveSession:
@@ -43,19 +50,24 @@ class LiveSession:
         self.space, self.region, self.region_3d = space, region, region_3d
         self.capture = ViewportCapture(space, region)
         self.pool = TexturePool()
-        self.scene_version = 0       # bumped by the caller when the scene changes (depsgraph updates)
+        self.scene_version = 0       # bumped by scene_updated when the scene changes
         self._seen_version = 0
         self._absorb_updates = False  # the capture's own scene changes reach the caller late
-        self._key = None
+        self._capture_key = self._chain_key = self._settings_seen = None
         self._changed_at = 0.0
-        self._captured = False       # the current view has been captured
-        self._view = None            # its ProgressiveView (None in a baseline mode)
+        self._held = False           # the current view is captured at the scene's samples
+        self._views = None           # the session's NavigatedViews, while in SSR mode
+        self._following = None       # TemporaryChanges holding the capture's set-up while the view moves
+        self._view = None            # the shown view's ProgressiveView (None in a baseline mode)
         self._passes = None
         self.display = DisplayTransform()
         self._image = None           # what is shown, scene linear: (texture, through the view transform)
         self._texture = None         # the same, display encoded
         self._shown = None           # (debug view, colour management) of what is shown
         self._capture_ms = 0.0
+        self._capture_draws = 0
+        self._updates = deque(maxlen=RATE_WINDOW)  # when each update while moving was shown
+        self.draw_ms = 0.0           # the overlay's last draw (ui.live)
         self.status = "SSR live: waiting for the view to hold still"
 
     @property
@@ -73,17 +85,30 @@ class LiveSession:
         scale = scene.ssr.live_resolution / 100.0
         return max(int(self.region.width * scale), 4), max(int(self.region.height * scale), 4)
 
-    def _view_key(self, scene):
-        """Everything whose change restarts the view (a debug view only redraws). The navigation state is read as well as
-        the matrices: those are recomputed only when the region redraws."""
+    def _keys(self, scene):
+        """(what the capture shows, what the chain reads): a change of the first captures anew,
+        of the second re-runs the chain on the same passes; a debug view only redraws. The
+        navigation state is read as well as the matrices: those are recomputed only when the
+        region redraws."""
         settings, view = scene.ssr, self.region_3d
         navigation = (*view.view_location, *view.view_rotation, view.view_distance, view.view_perspective,
                       view.view_camera_zoom, *view.view_camera_offset, self.space.lens,
                       self.space.clip_start, self.space.clip_end, scene.camera)
         matrices = np.round(np.concatenate([np.array(view.view_matrix), np.array(view.window_matrix)]), 5)
-        return (navigation, tuple(matrices.ravel()), self.capture_size(scene), self.space.shading.type,
-                astuple(chain_settings(settings)), settings.comparison_mode, settings.probe_object,
-                settings.planar_object)
+        chain = chain_settings(settings)
+        return ((navigation, tuple(matrices.ravel()), self.capture_size(scene), self.space.shading.type,
+                 chain.lamp_split, settings.comparison_mode, settings.probe_object, settings.planar_object),
+                astuple(chain))
+
+    def scene_updated(self, scene, only_scene):
+        """The depsgraph of SCENE was updated (ONLY_SCENE: no data-block but the scene itself).
+        A change of the session's own settings is not an edit of what the view shows: tick
+        reads those."""
+        settings = (self._keys(scene)[1], scene.ssr.comparison_mode, scene.ssr.live_resolution,
+                    scene.ssr.debug_view, self._look(scene))
+        if not (only_scene and settings != self._settings_seen):
+            self.scene_version += 1
+        self._settings_seen = settings
 
     def tick(self, scene, now=None):
         """Advance the session; returns True when what is shown has changed. Raises SSRError
@@ -92,20 +117,36 @@ class LiveSession:
         problem = self.problem(scene)
         if problem is not None:
             raise SSRError(problem)
-        key = self._view_key(scene)
+        capture_key, chain_key = self._keys(scene)
         if self._absorb_updates:
             self._seen_version, self._absorb_updates = self.scene_version, False
-        if key != self._key or self.scene_version != self._seen_version:
-            self._key, self._seen_version = key, self.scene_version
-            self._changed_at, self._captured, self._view = now, False, None
+        edited = self.scene_version != self._seen_version
+        if capture_key != self._capture_key or edited:
+            moved = self._capture_key is not None and chain_key == self._chain_key
+            self._capture_key, self._chain_key, self._seen_version = capture_key, chain_key, self.scene_version
+            self._changed_at, self._held = now, False
+            if self._views is not None and moved and scene.ssr.comparison_mode == "SSR":
+                if edited:
+                    self._views.forget()
+                self._follow(scene, now)
+                return True
+            self._stop_following()
+            self._views = self._view = self._passes = None
             changed = self._texture is not None
             self._texture = self._image = None
             self.status = "SSR live: waiting for the view to hold still"
             return changed
-        if not self._captured:
+        if chain_key != self._chain_key:
+            self._chain_key = chain_key
+            if self._passes is not None:
+                self._views = NavigatedViews(chain_settings(scene.ssr), self.pool)
+                self._view = self._views.view(self._passes, follow=False)
+                self._show(scene, self._view.step())
+                return True
+        if not self._held:
             if now - self._changed_at < DEBOUNCE_S:
                 return False
-            self._start(scene)
+            self._hold(scene)
             return True
         if self._view is None:  # a baseline mode's still image
             return self._redisplay(scene)
@@ -117,34 +158,71 @@ class LiveSession:
             self._show(scene, self._view.step(seconds=STEP_SECONDS))
         return True
 
-    def _start(self, scene):
-        """Capture the view and show its first image."""
+    def _view_matrices(self):
+        return np.array(self.region_3d.view_matrix), np.array(self.region_3d.window_matrix)
+
+    def _follow(self, scene, now):
+        """Capture the moving view at one sample and show its first image, the last view's history reprojected."""
+        if self._following is None:
+            self._following = TemporaryChanges()
+            try:
+                self.capture.hold_set_up(scene, rendered_view_layer(scene), self._following)
+            finally:
+                self._absorb_updates = True
+        timer = StageTimer()
+        passes = self._capture(scene, timer, MOVING_SAMPLES)
+        self._view, self._passes = self._views.view(passes, inputs_timer=timer), passes
+        self._updates.append(now)
+        self._show(scene, self._view.step(max_iterations=1))
+
+    def _hold(self, scene):
+        """Capture the held view at the scene's samples and show its first image, as a still."""
         settings = scene.ssr
         mode = settings.comparison_mode
-        size = self.capture_size(scene)
-        timer = StageTimer()
-        self._captured = True
-        try:
+        self._held = True
+        self._updates.clear()
+        self._stop_following()
+        if mode != "SSR" or not chain_settings(settings).use_ssr:  # nothing to refine: EEVEE's own image
+            size = self.capture_size(scene)
             with TemporaryChanges() as changes:
                 apply_baseline(scene, mode.lower(), changes, probe_object=settings.probe_object,
                                mirror_object=settings.planar_object)
-                chain = chain_settings(settings)
-                view = np.array(self.region_3d.view_matrix)
-                projection = np.array(self.region_3d.window_matrix)
-                view_layer = rendered_view_layer(scene)
-                if mode != "SSR" or not chain.use_ssr:  # nothing to refine: EEVEE's own image, baseline applied
-                    combined = upload(self.capture.combined(scene, view_layer, view, projection, size))
-                    self._display(scene, combined, view_transform=True)
-                    self.status = f"SSR live: {mode.lower()}, EEVEE's own image"
-                    return
-                passes = self.capture.capture(scene, view_layer, view, projection, size, self._clip(scene),
-                                              chain.lamp_split, timer)
+                try:
+                    combined = self.capture.combined(scene, rendered_view_layer(scene), *self._view_matrices(), size)
+                finally:
+                    self._absorb_updates = True
+            self._views = self._view = self._passes = None
+            self._display(scene, upload(combined), view_transform=True)
+            self.status = f"SSR live: {mode.lower()}, EEVEE's own image"
+            return
+        timer = StageTimer()
+        passes = self._capture(scene, timer)
+        if self._views is None:
+            self._views = NavigatedViews(chain_settings(settings), self.pool)
+        self._view, self._passes = self._views.view(passes, inputs_timer=timer, follow=False), passes
+        self._show(scene, self._view.step())
+
+    def _stop_following(self):
+        """Put back the set-up held while the view moved."""
+        if self._following is not None:
+            following, self._following = self._following, None
+            following.restore()
+            self._absorb_updates = True
+
+    def _capture(self, scene, timer, samples=None):
+        """RenderPasses of the view, its noisy passes at SAMPLES (default: the scene's)."""
+        settings = scene.ssr
+        draws = self.capture.draws
+        try:
+            passes = self.capture.capture(scene, rendered_view_layer(scene), *self._view_matrices(),
+                                          self.capture_size(scene), self._clip(scene),
+                                          chain_settings(settings).lamp_split, timer, samples)
         finally:
             self._absorb_updates = True  # and any the capture caused by the time it failed
         ensure_backend()
-        self._view, self._passes = ProgressiveView(passes, chain, self.pool, inputs_timer=timer), passes
         self._capture_ms = sum(timer.milliseconds.values())
-        self._show(scene, self._view.step())
+        self._capture_draws = self.capture.draws - draws
+        return passes
 
     def _clip(self, scene):
         """(clip_start, clip_end) of the view: the camera's in camera view, else the 3D View's."""
@@ -168,6 +246,13 @@ class LiveSession:
         self._display(scene, *self._image)
         return True
 
+    @property
+    def updates_per_second(self):
+        """Of the view while it moves, over the last RATE_WINDOW updates; None before two."""
+        if len(self._updates) < 2 or self._updates[-1] <= self._updates[0]:
+            return None
+        return (len(self._updates) - 1) / (self._updates[-1] - self._updates[0])
+
     def _show(self, scene, outputs):
         view = self._view
         debug_view = scene.ssr.debug_view
@@ -176,14 +261,19 @@ class LiveSession:
         else:
             layers = read_layers(self._passes, outputs, names={DEBUG_VIEW_LAYERS[debug_view]})
             self._display(scene, upload(debug_pixels(None, layers, debug_view)), view_transform=False)
-        chain_ms = sum(view.timer.milliseconds.values())
-        state = "converged" if view.done else "refining"
-        self.status = (f"SSR live: {view.iterations} iterations, {state}; capture {self._capture_ms:.0f} ms, "
-                       f"chain {chain_ms / view.iterations:.1f} ms per iteration")
+        chain_ms = sum(view.timer.milliseconds.values()) / view.iterations
+        timings = (f"capture {self._capture_ms:.0f} ms ({self._capture_draws} draws), "
+                   f"chain {chain_ms:.1f} ms per iteration, draw {self.draw_ms:.1f} ms")
+        if not self._held:
+            rate = self.updates_per_second
+            self.status = f"SSR live: moving, {f'{rate:.1f} updates/s' if rate else 'following'}; {timings}"
+        else:
+            state = "converged" if view.done else "refining"
+            self.status = f"SSR live: {view.iterations} iterations, {state}; {timings}"
 
     def release(self):
+        self._stop_following()
         self.capture.release()
         self.pool.release()
         self.display.release()
-        self._view = self._texture = self._image = self._passes = None
-
+        self._views = self._view = self._texture = self._image = self._passes = None
