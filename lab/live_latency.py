@@ -1,34 +1,46 @@
 """Live SSR latency: from a view change to the first SSR image and to convergence.
 
-    python -m lab live [--resolutions WxH ...] [--page docs/measurements.md]
+    python -m lab live [--resolutions WxH ...] [--orbit N] [--orbit-scenes NAME ...] [--page docs/measurements.md]
 
 At each resolution the scene camera's view is previewed once to warm EEVEE's viewport
 (shader compilation), then the camera moves a little and the view is previewed again,
 exactly as the live mode captures and refines a view that has just stopped moving
 (ssr_addon.batch.preview). The second preview's images (first image, converged) go to
-IMAGES/WxH/ (IMAGES: --images, default docs/live) and its timings into the table.
+IMAGES/WxH/ (IMAGES: --images, default docs/live) and its timings into the table; it then
+orbits MOVING_VIEWS views (preview --orbit), whose updates are timed against one one-sample
+viewport draw of Combined, and their PNGs go to IMAGES/WxH/orbit/.
+Then, at the first resolution, --orbit views around each of --orbit-scenes, each view measured
+against a converged still of it (orbit_quality).
 """
 import os
+import tempfile
+import time
 
 import bpy
 import gpu
 import numpy as np
 
 from ssr_addon.batch.cli import ArgumentParser
-from ssr_addon.batch.preview import run_preview
+from ssr_addon.batch.preview import ORBIT_STEP_DEGREES, run_preview
 from ssr_addon.batch.request import parse_resolution
 from ssr_addon.blender.colour_management import DisplayTransform
 from ssr_addon.blender.gpu_context import ensure_backend
-from ssr_addon.blender.scene_io import load_scene
+from ssr_addon.blender.overrides import TemporaryChanges
+from ssr_addon.blender.render_setup import rendered_view_layer
+from ssr_addon.blender.scene_io import camera_matrices, load_scene
+from ssr_addon.blender.viewport_capture import ViewportCapture, headless_view3d
 from ssr_addon.core.gpu_backend import StageTimer, TexturePool, describe_gpu, download, upload
 from ssr_addon.core.progressive import STEP_SECONDS, ProgressiveView
 from ssr_addon.core.settings import ChainSettings
 from ssr_addon.ui.live import draw_image
 from .bench.scenes import REPO, resolve_scene
+from .bench.stability import FLICKER_LIMIT
 from .docs import page_link, require_page, rewrite_block
 
 SCENE = "mirror_floor"
 OUT = os.path.join(REPO, "docs", "live")
+MOVING_VIEWS = 6                      # orbit views the update while moving is timed over
+ORBIT_SCENES = ("wet_street", "rolling_ball")
 
 
 def measure(resolution, images):
@@ -37,9 +49,35 @@ def measure(resolution, images):
     run_preview(scene, folder, ChainSettings(), resolution, log=lambda line: None)  # warms the viewport engine
     scene.camera.location.x += 0.05  # the view changes, as after a navigation
     bpy.context.view_layer.update()
-    timings = run_preview(scene, folder, ChainSettings(), resolution)
+    timings = run_preview(scene, folder, ChainSettings(), resolution, orbit=MOVING_VIEWS)
+    for name in os.listdir(os.path.join(folder, "orbit")):  # the moving views' PNGs are kept
+        if name.endswith(".exr"):
+            os.remove(os.path.join(folder, "orbit", name))
     timings["draw_ms"] = overlay_draw_ms(scene, timings["resolution"])
+    timings["one_sample_draw_ms"] = one_sample_draw_ms(scene, timings["resolution"])
     return timings
+
+
+def one_sample_draw_ms(scene, size, repeats=3):
+    """Median milliseconds of one one-sample viewport draw of Combined after a camera move: the
+    yardstick of a moving view's update (EEVEE's own viewport answers a move in about that)."""
+    space, region = headless_view3d()
+    capture = ViewportCapture(space, region)
+    view_layer = rendered_view_layer(scene)
+    times = []
+    with TemporaryChanges() as changes:
+        changes.set(space.shading, "type", "RENDERED")
+        try:
+            for repeat in range(repeats + 1):  # the first draw after the change of shading warms up
+                scene.camera.location.x += 0.01
+                view_layer.update()
+                view, projection = camera_matrices(scene, *size)
+                started = time.perf_counter()
+                capture.draw_passes(scene, view_layer, view, projection, size, {"Combined": ("COMBINED", 4, 1)})
+                times.append((time.perf_counter() - started) * 1000.0)
+        finally:
+            capture.release()
+    return float(np.median(times[1:]))
 
 
 def overlay_draw_ms(scene, size, repeats=20):
@@ -63,6 +101,9 @@ def overlay_draw_ms(scene, size, repeats=20):
 def main(argv):
     parser = ArgumentParser(prog="python -m lab live", description=__doc__.splitlines()[0])
     parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=[(320, 180), (1280, 720)])
+    parser.add_argument("--orbit", type=int, default=24, help="views of the orbits measured against converged "
+                                                            "stills at the first resolution (0: none; default 24)")
+    parser.add_argument("--orbit-scenes", nargs="+", default=list(ORBIT_SCENES))
     parser.add_argument("--page", help="rewrite a block of this markdown page with the table")
     parser.add_argument("--block", default="live", help="the block to rewrite (default: live)")
     parser.add_argument("--images", default=OUT, help="folder of the WxH/ image folders (default: docs/live)")
@@ -70,26 +111,55 @@ def main(argv):
     require_page(arguments.page)
     arguments.images = os.path.abspath(arguments.images)
     rows = [measure(resolution, arguments.images) for resolution in arguments.resolutions]
+    first = arguments.resolutions[0]
+    with tempfile.TemporaryDirectory() as scratch:  # the orbits' own images are not shown
+        orbits = [(name, *orbit_quality(load_scene(resolve_scene(name)), os.path.join(scratch, name),
+                                        ChainSettings(), first, arguments.orbit))
+                  for name in (arguments.orbit_scenes if arguments.orbit else ())]
     ensure_backend()
     images = os.path.relpath(arguments.images, REPO).replace(os.sep, "/")
     lines = [f"Latest run: `python -m lab live"
+             f"{f' --resolutions {format_resolutions(arguments.resolutions)}' if len(rows) != 2 else ''}"
+             f"{f' --orbit {arguments.orbit}' if arguments.orbit != 24 else ''}"
              f"{' --page docs/measurements.md' if arguments.page else ''}"
              f"{f' --block {arguments.block}' if arguments.block != 'live' else ''}"
              f"{f' --images {images}' if images != 'docs/live' else ''}` on {describe_gpu()['renderer']}, "
-             f"{SCENE}, balanced preset, after a camera move (EEVEE already compiled).", "",
-             "| resolution | first SSR image | converged | iterations | capture (passes) | lamp split "
-             "| chain per iteration | overlay draw | add-on share (chain + draw) |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             f"{SCENE}, balanced preset, after a camera move (EEVEE already compiled). While moving: the "
+             f"median of {MOVING_VIEWS} orbit views, each captured at one sample and shown after one "
+             "iteration from the last view's history; against one one-sample viewport draw of Combined "
+             "in the same run.", "",
+             "| resolution | moving: update | draws a update | one-sample draw | update / draw | updates per s "
+             "| held: first SSR image | converged | iterations | capture (passes) | lamp split "
+             "| chain per iteration | overlay draw |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         capture = row["capture_ms"]
         # A lamps-only draw is part of the capture; the analytic split is the chain's first pass.
         lamp_split_ms = capture.get("lamp_split", 0.0) + row["chain_stages_ms"].get("lamp_split", 0.0)
-        lines.append(f"| {row['resolution'][0]}x{row['resolution'][1]} | {row['time_to_first_image_ms'] / 1000:.2f} s "
+        update_ms = float(np.median([view["time_to_image_ms"] for view in row["orbit"]]))
+        lines.append(f"| {row['resolution'][0]}x{row['resolution'][1]} | {update_ms:.0f} ms "
+                     f"| {row['orbit'][-1]['draws']} at 1 sample | {row['one_sample_draw_ms']:.0f} ms "
+                     f"| {update_ms / row['one_sample_draw_ms']:.1f}x | {row['orbit_updates_per_second']:.2f} "
+                     f"| {row['time_to_first_image_ms'] / 1000:.2f} s "
                      f"| {row['time_to_last_image_ms'] / 1000:.2f} s | {row['iterations']} "
                      f"| {capture['capture']:.0f} ms | {lamp_split_ms:.0f} ms "
-                     f"| {row['chain_ms_per_iteration']:.1f} ms | {row['draw_ms']:.2f} ms "
-                     f"| {row['chain_ms_per_iteration'] + row['draw_ms']:.1f} ms |")
-    first = arguments.resolutions[0]
+                     f"| {row['chain_ms_per_iteration']:.1f} ms | {row['draw_ms']:.2f} ms |")
+    if orbits:
+        lines += ["", f"Orbits of {arguments.orbit} views, {ORBIT_STEP_DEGREES:g} degree each, at {first[0]}x{first[1]}: "
+                  "relative error on the reflective pixels against a converged still of each view, of the "
+                  "moving view, of one iteration of its own passes without history, and of EEVEE's image "
+                  "without SSR; flicker: the mean change of the moving view's error from one view to the next, "
+                  f"relative to the reflective pixels' brightness (limit {FLICKER_LIMIT}, the stability suite's).", "",
+                  "| scene | moving, mean (max) | without history, mean | views no worse than without history "
+                  "| without SSR, least | flicker | updates per s |",
+                  "|---|---|---|---|---|---|---|"]
+        for name, timings, views, flicker in orbits:
+            moving = [view["moving"] for view in views]
+            alone = [view["without_history"] for view in views]
+            lines.append(f"| {name} | {np.mean(moving):.3f} ({max(moving):.3f}) | {np.mean(alone):.3f} "
+                         f"| {sum(m <= a for m, a in zip(moving, alone))} of {len(views)} "
+                         f"| {min(view['without_ssr'] for view in views):.3f} | {flicker:.4f} "
+                         f"| {timings['orbit_updates_per_second']:.2f} |")
     folder = page_link(arguments.page or os.path.join(REPO, "docs", "measurements.md"),
                        os.path.join(arguments.images, "{}x{}".format(*first))).replace(os.sep, "/")
     lines += ["", f"First image, then converged ({first[0]}x{first[1]}):", "",
@@ -98,6 +168,10 @@ def main(argv):
     print(text)
     if arguments.page:
         rewrite_block(arguments.page, arguments.block, text, "Live SSR in the viewport")
+
+
+def format_resolutions(resolutions):
+    return " ".join("{}x{}".format(*resolution) for resolution in resolutions)
 
 
 def reflective_mask(passes):

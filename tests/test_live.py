@@ -65,6 +65,10 @@ def test_bad_preview_arguments_get_one_line(tmp_path):
                      check=False)
     assert result.returncode == 2
     assert result.stderr.strip().splitlines() == ["error: --iterations must be at least 1, got 0"]
+    result = run_cli("preview", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "orbit", "--orbit", "-2",
+                     check=False)
+    assert result.returncode == 2 and not (tmp_path / "orbit").exists()
+    assert result.stderr.strip().splitlines() == ["error: --orbit must be 0 or more views, got -2"]
 
 
 @pytest.fixture(scope="module")
