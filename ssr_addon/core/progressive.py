@@ -101,8 +101,8 @@ class NavigatedViews:
     refined from the last one's history as an animation's frames are: the history is reprojected
     through the camera's motion (camera_motion) and each view's first image costs one iteration.
     The history is dropped where reprojection cannot hold it: the camera before saw less than
-    MIN_SHARED_VIEW of what this view shows (a cut), or the caller says so (forget: the scene or
-    a setting changed). POOL as ProgressiveView's."""
+    MIN_SHARED_VIEW of what this view shows (a cut), the view's size changed, or the caller says
+    so (forget: the scene or a setting changed). POOL as ProgressiveView's."""
 
     MIN_SHARED_VIEW = 0.5
 
@@ -112,6 +112,7 @@ class NavigatedViews:
         if pool is not None:
             self.state.pool = pool
         self._views = 0
+        self._size = None  # of the last view
 
     def forget(self):
         self.state.reset_history()
@@ -120,7 +121,7 @@ class NavigatedViews:
         """Start a ProgressiveView of PASSES (a capture with no motion of its own) after the views
         before: FOLLOW, from their history; otherwise as a still, whose history the next view follows."""
         state = self.state
-        if not follow:
+        if not follow or passes.size != self._size:  # a history of another size reprojects nowhere
             self.forget()
         elif state.previous_world_to_clip is not None:
             motion, shared = camera_motion(passes.depth, passes.view_matrix, passes.projection_matrix,
@@ -130,4 +131,5 @@ class NavigatedViews:
                 self.forget()
         state.begin_frame(self._views)  # the first view draws a still's own rays (ProgressiveView)
         self._views += 1
+        self._size = passes.size
         return ProgressiveView(passes, self.settings, inputs_timer=inputs_timer, state=state)

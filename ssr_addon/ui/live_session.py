@@ -87,17 +87,19 @@ class LiveSession:
 
     def _keys(self, scene):
         """(what the capture shows, what the chain reads): a change of the first captures anew,
-        of the second re-runs the chain on the same passes; a debug view only redraws. The
-        navigation state is read as well as the matrices: those are recomputed only when the
-        region redraws."""
+        of the second re-runs the chain on the same passes; a debug view only redraws. What the
+        capture shows is (the view, how it is captured): a change of the view alone is followed
+        with its history. The navigation state is read as well as the matrices: those are
+        recomputed only when the region redraws."""
         settings, view = scene.ssr, self.region_3d
         navigation = (*view.view_location, *view.view_rotation, view.view_distance, view.view_perspective,
                       view.view_camera_zoom, *view.view_camera_offset, self.space.lens,
                       self.space.clip_start, self.space.clip_end, scene.camera)
         matrices = np.round(np.concatenate([np.array(view.view_matrix), np.array(view.window_matrix)]), 5)
         chain = chain_settings(settings)
-        return ((navigation, tuple(matrices.ravel()), self.capture_size(scene), self.space.shading.type,
-                 chain.lamp_split, settings.comparison_mode, settings.probe_object, settings.planar_object),
+        return (((navigation, tuple(matrices.ravel())),
+                 (self.capture_size(scene), self.space.shading.type, chain.lamp_split, settings.comparison_mode,
+                  settings.probe_object, settings.planar_object)),
                 astuple(chain))
 
     def scene_updated(self, scene, only_scene):
@@ -122,7 +124,8 @@ class LiveSession:
             self._seen_version, self._absorb_updates = self.scene_version, False
         edited = self.scene_version != self._seen_version
         if capture_key != self._capture_key or edited:
-            moved = self._capture_key is not None and chain_key == self._chain_key
+            moved = (self._capture_key is not None and capture_key[1] == self._capture_key[1]
+                     and chain_key == self._chain_key)
             self._capture_key, self._chain_key, self._seen_version = capture_key, chain_key, self.scene_version
             self._changed_at, self._held = now, False
             if self._views is not None and moved and scene.ssr.comparison_mode == "SSR":
