@@ -206,6 +206,19 @@ TRACE = GPUPass(
                  Layer("SSR Iterations", "V", channels=(1,), view=DebugView(
                      "ITERATIONS", "Iterations", "March steps each pixel's ray took (the last trace iteration)"))))),
     libraries=_TRACE_LIBRARIES)
+
+
+def _traces_sharp_rays(frame):
+    """Half-resolution rays resolved at full resolution: the smoothest pixels trace their own too."""
+    return frame.settings.half_resolution and frame.settings.sharp_roughness > 0.0 and not _resolves_at_half(frame)
+
+
+TRACE_SHARP = GPUPass(
+    "trace_sharp", "trace.glsl", stage="trace",
+    samplers=("depth_tx", "normal_tx", "roughness_tx", "hiz_tx"),
+    outputs=(Output("sharp_ray_hit_img"), Output("sharp_ray_dir_img")),
+    libraries=_TRACE_LIBRARIES, defines=(("SHARP_RAYS", ""),),
+    runs=_traces_sharp_rays, placeholders=(("sharp_ray_hit", "ray_hit"), ("sharp_ray_dir", "ray_dir")))
 # The screen a capture's rays are marched across (screen_ray_lib.glsl).
 _CAPTURE_SCREEN = (("SCREEN_VIEW_TO_CLIP", "params.capture_view_to_clip"), ("SCREEN_SIZE", "params.capture_size"),
                    ("SCREEN_DEPTH_TX", "capture_depth_tx"))
@@ -236,8 +249,8 @@ CUBE_TRACE = GPUPass(
     runs=lambda frame: frame.inputs.cube is not None, skipped=(("capture_hit", "planar_hit"),))
 RESOLVE = GPUPass(
     "resolve", "resolve.glsl", stage="resolve",
-    samplers=("ray_hit_tx", "ray_dir_tx", "depth_tx", "normal_tx", "roughness_tx", "color_tx", "history_record_tx",
-              "capture_hit_tx"),
+    samplers=("ray_hit_tx", "ray_dir_tx", "sharp_ray_hit_tx", "sharp_ray_dir_tx", "depth_tx", "normal_tx",
+              "roughness_tx", "color_tx", "history_record_tx", "capture_hit_tx"),
     outputs=(Output("resolved_img", size="resolve", layers=(Layer("SSR Resolve", "RGBA"),)),
              Output("reflection_hit_img", size="resolve")),
     libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"))
@@ -297,7 +310,7 @@ DISPLAY_TRANSFORM = GPUPass(
 
 # What a frame runs, in order (chain.FrameRun): once a frame, once an iteration, once a composite.
 FRAME_PASSES = (LAMP_SPLIT,)
-ITERATION_PASSES = (TRACE, PLANAR_TRACE, CUBE_TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
+ITERATION_PASSES = (TRACE, TRACE_SHARP, PLANAR_TRACE, CUBE_TRACE, RESOLVE, RESOLVE_UPSCALE, DENOISE_SPATIAL, TEMPORAL)
 CHAIN_PASSES = (*FRAME_PASSES, HIZ_DOWNSAMPLE, COLOR_DOWNSAMPLE, *ITERATION_PASSES, CONVERGENCE_TILES, COMPOSITE)
 # The chain's stages as a StageTimer names them, in order.
 CHAIN_STAGES = tuple(dict.fromkeys(gpu_pass.stage for gpu_pass in CHAIN_PASSES if gpu_pass.stage))

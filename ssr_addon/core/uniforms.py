@@ -45,6 +45,8 @@ PARAMS_FIELDS = (
     ("float", "clip_end", "depth at or past it is background"),
     ("float", "expensive_roughness", "pixels smoother than this get expensive (Hi-Z) rays"),
     ("float", "expensive_tie_fraction", "share of pixels at exactly that roughness that do"),
+    ("float", "sharp_roughness", "pixels at most this rough trace a ray of their own every iteration (trace_sharp); "
+                                 "-1: none does"),
     ("int", "hiz_levels", "levels in the min-depth pyramid (0: no Hi-Z tracing)"),
     ("int", "hiz_max_iterations", "most cell visits per Hi-Z ray"),
     ("float", "thickness", "assumed depth of every surface, scene units"),

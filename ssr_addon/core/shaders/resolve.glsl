@@ -4,7 +4,9 @@
  * each texel resolving the pixel its ray started from; resolve_upscale.glsl then
  * scales that up.
  *
- * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), depth_tx, normal_tx, roughness_tx,
+ * Inputs:  ray_hit_tx, ray_dir_tx (traced rays), sharp_ray_hit_tx, sharp_ray_dir_tx (the full-resolution
+ *          rays of the smoothest pixels, trace_sharp; read where params.sharp_roughness >= 0),
+ *          depth_tx, normal_tx, roughness_tx,
  *          color_tx (colour pyramid atlas; level 0 is the lit scene), history_record_tx
  *          (iterations the temporal history holds, history_lib.glsl), capture_hit_tx
  *          (what the captures found for each ray, read where params.capture_levels has any).
@@ -12,7 +14,13 @@
  *          reflection_hit_img = (mean hit distance, mean hit uv of the screen's hits, weighted as the
  *                               radiance; the captures' share of the reflection).
  *
- * Each pixel reuses the rays of its own and neighbouring traced texels with the
+ * A pixel at most sharp_roughness rough traced a ray of its own this iteration; where it found
+ * its hit on screen unfaded (or faded, with no capture to take the rest), and no capture took
+ * the nearest traced ray (the captures trace only those: its own hit may be one the camera
+ * does not see), and the rays it would reuse weigh less between them than one ray of its own
+ * lobe (their normals turned past its narrow lobe: a curved mirror), its own ray alone is the
+ * estimate; otherwise they are, as for every other pixel.
+ * Every other pixel reuses the rays of its own and neighbouring traced texels with the
  * ratio estimator  L = sum(L_k f_s(l_k) cos / p_k) / sum(f_s(l_k) cos / p_k),
  * where l_k runs from this pixel to ray k's hit and p_k is the pdf ray k was
  * drawn with. The FG factor is applied by the composite. Rays that missed
@@ -62,6 +70,22 @@ vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
   return mix(sharp, atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb, level);
 }
 
+/* The ratio estimator's sums over a set of rays (see above). */
+struct RayEstimate {
+  vec3 radiance;        /* sum of hit weight * (tone-mapped) radiance */
+  float weight;         /* sum of f_s cos / p, misses included */
+  float hit_weight;     /* the share of it whose rays found a hit (screen or capture) */
+  float screen_weight;  /* the screen's share */
+  float capture_weight; /* the captures' share */
+  float distance;       /* sum of screen hit weight * hit distance */
+  vec2 hit_uv;          /* sum of screen hit weight * hit uv */
+};
+
+RayEstimate no_estimate()
+{
+  return RayEstimate(vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, vec2(0.0));
+}
+
 void main()
 {
   ivec2 pixel = params.resolve_scale > 1 ? ray_origin_pixel(ivec2(gl_FragCoord.xy)) : ivec2(gl_FragCoord.xy);
@@ -85,22 +109,24 @@ void main()
    * first four rays are the four nearest. */
   ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
   ivec2 trace_size = ivec2(params.trace_size);
+  bool own_ray = false;
+  if (roughness <= params.sharp_roughness) {
+    vec4 own_hit = texelFetch(sharp_ray_hit_tx, pixel, 0);
+    bool captured = params.capture_levels != 0 && texelFetch(capture_hit_tx, own_texel, 0).a > 0.0;
+    own_ray = own_hit.z > 0.0 && own_hit.w > 0.0 && !captured && (own_hit.w >= 1.0 || params.capture_levels == 0);
+  }
   int ray_count = params.resolve_samples;
   float iterations = accumulated_iterations(pixel);
-  /* A ray stands for one of the N rays of every iteration the history averages here. */
-  float rays_averaged = float(ray_count) * iterations;
   /* The history averages a bright ray's excess over the iterations it holds, so the guard needs
    * to compress only that share: at full strength it would keep a lamp's glint dim forever. */
   float guard = params.use_firefly_guard != 0 ? 1.0 / iterations : 0.0;
   float n_dot_v = dot(normal, to_eye);
 
-  vec3 radiance_sum = vec3(0.0);
-  float weight_sum = 0.0, hit_weight_sum = 0.0, screen_weight_sum = 0.0, capture_weight_sum = 0.0;
-  float distance_sum = 0.0;
-  vec2 hit_uv_sum = vec2(0.0);
-  for (int k = 0; k < ray_count; k++) {
-    ivec2 texel = clamp(own_texel + NEIGHBOURS[k] * side, ivec2(0), trace_size - 1);
-    vec4 hit = texelFetch(ray_hit_tx, texel, 0);
+  RayEstimate reused = no_estimate(), own = no_estimate();
+  for (int k = own_ray ? -1 : 0; k < ray_count; k++) {
+    bool is_own = k < 0; /* this pixel's own ray (trace_sharp) */
+    ivec2 texel = clamp(own_texel + NEIGHBOURS[max(k, 0)] * side, ivec2(0), trace_size - 1);
+    vec4 hit = is_own ? texelFetch(sharp_ray_hit_tx, pixel, 0) : texelFetch(ray_hit_tx, texel, 0);
     if (!(hit.z > 0.0)) {
       continue; /* no ray was traced there (sky, rough or back-facing pixel) */
     }
@@ -110,11 +136,11 @@ void main()
     if (k > 0 && dot(view_normal(origin_normal), normal) < SAME_SURFACE_COS) {
       continue;
     }
-    vec4 ray = texelFetch(ray_dir_tx, texel, 0);
+    vec4 ray = is_own ? texelFetch(sharp_ray_dir_tx, pixel, 0) : texelFetch(ray_dir_tx, texel, 0);
     vec3 direction = ray.xyz;
     float hit_distance = 0.0;
     /* A capture's hit stands in for the screen's share it takes (planar_trace.glsl). */
-    vec4 captured = params.capture_levels != 0 ? texelFetch(capture_hit_tx, texel, 0) : vec4(0.0);
+    vec4 captured = params.capture_levels != 0 && !is_own ? texelFetch(capture_hit_tx, texel, 0) : vec4(0.0);
     float screen_share = min(hit.w, 1.0 - captured.a);
     if (screen_share > 0.0) {
       float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport_size), 0).r;
@@ -123,36 +149,50 @@ void main()
       direction = to_hit / max(hit_distance, 1e-6);
     }
     float weight = ggx_brdf_cos(normal, to_eye, direction, alpha) / hit.z;
-    weight_sum += weight;
+    RayEstimate estimate = is_own ? own : reused;
+    estimate.weight += weight;
     if (screen_share > 0.0 && weight > 0.0) {
       float hit_weight = weight * screen_share;
+      /* A ray stands for one of the rays of its set (own: one; reused: N) of every iteration the
+       * history averages here. */
+      float rays_averaged = is_own ? iterations : float(ray_count) * iterations;
       vec3 radiance = hit_radiance(hit.xy, hit_distance, ray_solid_angle(hit.z, rays_averaged, n_dot_v, alpha));
-      radiance_sum += hit_weight * tonemap(radiance, guard);
-      hit_weight_sum += hit_weight;
-      screen_weight_sum += hit_weight;
-      distance_sum += hit_weight * hit_distance;
-      hit_uv_sum += hit_weight * hit.xy;
+      estimate.radiance += hit_weight * tonemap(radiance, guard);
+      estimate.hit_weight += hit_weight;
+      estimate.screen_weight += hit_weight;
+      estimate.distance += hit_weight * hit_distance;
+      estimate.hit_uv += hit_weight * hit.xy;
     }
     if (captured.a > 0.0 && weight > 0.0) {
       float hit_weight = weight * captured.a;
-      radiance_sum += hit_weight * tonemap(captured.rgb, guard);
-      hit_weight_sum += hit_weight;
-      capture_weight_sum += hit_weight;
+      estimate.radiance += hit_weight * tonemap(captured.rgb, guard);
+      estimate.hit_weight += hit_weight;
+      estimate.capture_weight += hit_weight;
+    }
+    if (is_own) {
+      own = estimate;
+    }
+    else {
+      reused = estimate;
     }
   }
+  /* A ray drawn from this pixel's own lobe weighs about one (G2 / G1): reused rays that weigh
+   * less than that between them all but miss the lobe, and the pixel's own ray stands alone. */
+  RayEstimate estimate = own_ray && reused.weight < 1.0 ? own : reused;
   /* Written so that NaN, should any reach here, counts as "no reflection". */
-  if (!(hit_weight_sum > 0.0 && weight_sum > 0.0)) {
+  if (!(estimate.hit_weight > 0.0 && estimate.weight > 0.0)) {
     return;
   }
   /* Confidence fades to zero over the top fifth of [0, max_roughness] so the
    * switch to the probe/world reflection leaves no seam (max_roughness 0: mirrors only). */
   float roughness_fade = max_roughness > 0.0 ?
                              1.0 - smoothstep(0.8 * max_roughness, max_roughness, roughness) : 1.0;
-  float confidence = hit_weight_sum / weight_sum * roughness_fade;
-  vec3 radiance = radiance_sum / hit_weight_sum;
+  float confidence = estimate.hit_weight / estimate.weight * roughness_fade;
+  vec3 radiance = estimate.radiance / estimate.hit_weight;
   radiance = tonemap_inverse(radiance, guard);
   resolved_img = vec4(radiance * confidence, confidence);
   /* The screen's hits only: a capture's have no place on screen to reproject. */
-  reflection_hit_img = screen_weight_sum > 0.0 ? vec4(distance_sum, hit_uv_sum, 0.0) / screen_weight_sum : vec4(0.0);
-  reflection_hit_img.w = capture_weight_sum / hit_weight_sum;
+  reflection_hit_img = estimate.screen_weight > 0.0 ?
+                           vec4(estimate.distance, estimate.hit_uv, 0.0) / estimate.screen_weight : vec4(0.0);
+  reflection_hit_img.w = estimate.capture_weight / estimate.hit_weight;
 }

@@ -14,7 +14,19 @@
  * quad, params.quad_phase, so all four originate a ray in four iterations
  * (frame_sequence.py). Smooth pixels (roughness below the budget's threshold)
  * get expensive Hi-Z rays, the rest cheap linear rays; ties at the threshold
- * toss a coin of their own, drawn afresh every iteration. */
+ * toss a coin of their own, drawn afresh every iteration.
+ *
+ * Compiled with SHARP_RAYS (the trace_sharp pass), it traces at full resolution, every
+ * iteration, from each pixel at most params.sharp_roughness rough, into sharp_ray_hit_img and
+ * sharp_ray_dir_img (no stats): a mirror's lobe is narrower than the turn of its neighbours'
+ * normals, so half-resolution rays reused from them show their reflections, not its own. */
+
+#ifdef SHARP_RAYS
+#  define ray_hit_img sharp_ray_hit_img
+#  define ray_dir_img sharp_ray_dir_img
+#  define ray_stats_img sharp_ray_stats
+vec4 sharp_ray_stats;
+#endif
 
 /* A hit from behind on the ray's own surface, this many pixel footprints from its plane, is a
  * graze near the origin; the ray goes on past it at most SELF_HIT_RETRIES times. */
@@ -58,7 +70,11 @@ bool is_expensive(float roughness, ivec2 pixel)
  * tail. */
 vec2 lobe_sample(ivec2 pixel)
 {
+#ifdef SHARP_RAYS
+  uint rays_per_pixel = 1u;
+#else
   uint rays_per_pixel = uint(params.trace_scale * params.trace_scale);
+#endif
   uint index = params.sample_index / rays_per_pixel;
   /* RAY_SAMPLING_RANDOM, for comparison: independent points, no strata (seed 0 is the rotation). */
   vec2 u = params.ray_sampling == RAY_SAMPLING_RANDOM ? pixel_noise(pixel, index + 1u) : sample_point(pixel, index);
@@ -81,10 +97,16 @@ void main()
   ray_hit_img = vec4(0.0);
   ray_dir_img = vec4(0.0);
   ray_stats_img = vec4(0.0);
+#ifdef SHARP_RAYS
+  ivec2 pixel = ivec2(gl_FragCoord.xy);
+  float max_roughness = min(params.max_roughness, params.sharp_roughness);
+#else
   ivec2 pixel = ray_origin_pixel(ivec2(gl_FragCoord.xy));
+  float max_roughness = params.max_roughness;
+#endif
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
   vec3 origin, incident, normal;
-  if (roughness > params.max_roughness || !reflecting_surface(pixel, origin, incident, normal)) {
+  if (roughness > max_roughness || !reflecting_surface(pixel, origin, incident, normal)) {
     return; /* too rough, or no ray from this pixel (surface_ray_lib.glsl) */
   }
   vec3 to_eye = -incident;
