@@ -142,23 +142,29 @@ def rippled_mirror(width, height, amplitude=0.05, wavelength=0.5, stripe_period=
 def test_a_rippled_mirror_keeps_its_sharp_image_at_half_resolution(gpu_backend):
     """Half-resolution tracing gives a pixel its own ray one iteration in four; in the others its
     neighbours' rays, reflected about normals turned a degree or more from its own, miss its
-    narrow lobe, and the still showed their reflections: off by half of what a one-pixel shift
-    of the image costs. A mirror pixel that traces a ray of its own every iteration keeps it
-    sharp: within a third of a one-pixel shift of the exact image."""
+    narrow lobe, and the still shows their reflections: off by half of what a one-pixel shift
+    of the image costs. With use_sharp_rays a mirror pixel traces a ray of its own every
+    iteration and keeps the image sharp: within a third of a one-pixel shift of the exact image."""
     width, height = 320, 180
     projection, depth, normal, radiance, floor, expected = rippled_mirror(width, height)
     roughness = np.where(floor, 0.02, 1.0).astype(np.float32)
-    settings = preset("balanced")
-    arrays, _ = run_synthetic_chain(depth, normal, roughness, projection, settings, radiance=radiance,
-                                    ray_budget=ray_budget(roughness, depth, CLIP_END, settings))
-    reflection = arrays["reflection"]
-    confidence = reflection[..., 3]
-    shown = reflection[..., :3] / np.maximum(confidence, 1e-6)[..., None]
-    judged = np.isfinite(expected[..., 0]) & (confidence > 0.5)
-    judged[:10], judged[-10:], judged[:, :10], judged[:, -10:] = False, False, False, False
-    assert judged.sum() > 5000, "the floor must mirror the boxes"
-    error = np.abs(shown - expected).mean(-1)[judged].mean()
-    one_pixel_shift = np.nanmean(np.abs(np.roll(expected, 1, axis=1) - expected).mean(-1)[judged])
+
+    def image_error(settings):
+        """(mean error on the judged pixels, what a one-pixel shift of the exact image costs there)."""
+        arrays, _ = run_synthetic_chain(depth, normal, roughness, projection, settings, radiance=radiance,
+                                        ray_budget=ray_budget(roughness, depth, CLIP_END, settings))
+        reflection = arrays["reflection"]
+        confidence = reflection[..., 3]
+        shown = reflection[..., :3] / np.maximum(confidence, 1e-6)[..., None]
+        judged = np.isfinite(expected[..., 0]) & (confidence > 0.5)
+        judged[:10], judged[-10:], judged[:, :10], judged[:, -10:] = False, False, False, False
+        assert judged.sum() > 5000, "the floor must mirror the boxes"
+        one_pixel_shift = np.nanmean(np.abs(np.roll(expected, 1, axis=1) - expected).mean(-1)[judged])
+        return np.abs(shown - expected).mean(-1)[judged].mean(), one_pixel_shift
+
+    error, one_pixel_shift = image_error(preset("balanced").with_overrides(["use_sharp_rays=true"]))
     assert error <= one_pixel_shift / 3, (
         f"the rippled mirror's image is off by {error:.4f}, {error / one_pixel_shift:.2f} of a one-pixel shift "
         f"({one_pixel_shift:.4f}): blurred")
+    reused, _ = image_error(preset("balanced"))
+    assert reused > 1.5 * error, "without its own rays the mirror should show its neighbours' reflections"

@@ -209,8 +209,11 @@ TRACE = GPUPass(
 
 
 def _traces_sharp_rays(frame):
-    """Half-resolution rays resolved at full resolution: the smoothest pixels trace their own too."""
-    return frame.settings.half_resolution and frame.settings.sharp_roughness > 0.0 and not _resolves_at_half(frame)
+    """use_sharp_rays with half-resolution rays resolved at full resolution: the smoothest pixels trace
+    their own too."""
+    settings = frame.settings
+    return settings.use_sharp_rays and settings.half_resolution and settings.sharp_roughness > 0.0 \
+        and not _resolves_at_half(frame)
 
 
 TRACE_SHARP = GPUPass(

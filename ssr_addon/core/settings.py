@@ -52,10 +52,13 @@ class ChainSettings:
              "(more where sharp_roughness asks)",
         0.0, 1.0)
     sharp_roughness: float = _setting(
-        0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget (a cheap ray's "
-             "coarse steps show as stair-steps in a sharp reflection), and with half-resolution tracing a ray "
-             "of their own every iteration (their lobe is narrower than the turn of their neighbours' normals, "
-             "so their neighbours' rays cannot stand in for it)", 0.0, 1.0)
+        0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
+             "coarse steps show as stair-steps in a sharp reflection", 0.0, 1.0)
+    use_sharp_rays: bool = _setting(
+        False, "With half-resolution tracing, surfaces at most sharp_roughness rough also trace a full-resolution "
+               "ray of their own every iteration: a curved mirror shows its own reflection, not its neighbours' "
+               "(sharper stills). Off by default: under a moving camera such a mirror's reprojected history "
+               "does not yet beat one fresh iteration")
     hiz_max_iterations: int = _setting(96, "Hi-Z tracing: most cell visits per ray", 8, 1024)
     use_importance_sampling: bool = _setting(
         True, "Sample ray directions from the GGX lobe (Halton sequence); off: mirror directions only")
