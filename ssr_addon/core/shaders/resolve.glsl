@@ -81,6 +81,9 @@ struct RayEstimate {
   vec2 hit_uv;          /* sum of screen hit weight * hit uv */
 };
 
+#define REUSED_RAYS 0
+#define OWN_RAY 1
+
 RayEstimate no_estimate()
 {
   return RayEstimate(vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, vec2(0.0));
@@ -110,8 +113,9 @@ void main()
   ivec2 side = scale > 1 ? (pixel - own_texel * scale) * 2 - 1 : ivec2(1);
   ivec2 trace_size = ivec2(params.trace_size);
   bool own_ray = false;
+  vec4 own_hit = vec4(0.0);
   if (roughness <= params.sharp_roughness) {
-    vec4 own_hit = texelFetch(sharp_ray_hit_tx, pixel, 0);
+    own_hit = texelFetch(sharp_ray_hit_tx, pixel, 0);
     bool captured = params.capture_levels != 0 && texelFetch(capture_hit_tx, own_texel, 0).a > 0.0;
     own_ray = own_hit.z > 0.0 && own_hit.w > 0.0 && !captured && (own_hit.w >= 1.0 || params.capture_levels == 0);
   }
@@ -122,11 +126,13 @@ void main()
   float guard = params.use_firefly_guard != 0 ? 1.0 / iterations : 0.0;
   float n_dot_v = dot(normal, to_eye);
 
-  RayEstimate reused = no_estimate(), own = no_estimate();
+  /* The sums of the rays it reuses, and of its own ray. */
+  RayEstimate sums[2] = RayEstimate[2](no_estimate(), no_estimate());
   for (int k = own_ray ? -1 : 0; k < ray_count; k++) {
     bool is_own = k < 0; /* this pixel's own ray (trace_sharp) */
+    int set = is_own ? OWN_RAY : REUSED_RAYS;
     ivec2 texel = clamp(own_texel + NEIGHBOURS[max(k, 0)] * side, ivec2(0), trace_size - 1);
-    vec4 hit = is_own ? texelFetch(sharp_ray_hit_tx, pixel, 0) : texelFetch(ray_hit_tx, texel, 0);
+    vec4 hit = is_own ? own_hit : texelFetch(ray_hit_tx, texel, 0);
     if (!(hit.z > 0.0)) {
       continue; /* no ray was traced there (sky, rough or back-facing pixel) */
     }
@@ -149,36 +155,29 @@ void main()
       direction = to_hit / max(hit_distance, 1e-6);
     }
     float weight = ggx_brdf_cos(normal, to_eye, direction, alpha) / hit.z;
-    RayEstimate estimate = is_own ? own : reused;
-    estimate.weight += weight;
+    sums[set].weight += weight;
     if (screen_share > 0.0 && weight > 0.0) {
       float hit_weight = weight * screen_share;
       /* A ray stands for one of the rays of its set (own: one; reused: N) of every iteration the
        * history averages here. */
       float rays_averaged = is_own ? iterations : float(ray_count) * iterations;
       vec3 radiance = hit_radiance(hit.xy, hit_distance, ray_solid_angle(hit.z, rays_averaged, n_dot_v, alpha));
-      estimate.radiance += hit_weight * tonemap(radiance, guard);
-      estimate.hit_weight += hit_weight;
-      estimate.screen_weight += hit_weight;
-      estimate.distance += hit_weight * hit_distance;
-      estimate.hit_uv += hit_weight * hit.xy;
+      sums[set].radiance += hit_weight * tonemap(radiance, guard);
+      sums[set].hit_weight += hit_weight;
+      sums[set].screen_weight += hit_weight;
+      sums[set].distance += hit_weight * hit_distance;
+      sums[set].hit_uv += hit_weight * hit.xy;
     }
     if (captured.a > 0.0 && weight > 0.0) {
       float hit_weight = weight * captured.a;
-      estimate.radiance += hit_weight * tonemap(captured.rgb, guard);
-      estimate.hit_weight += hit_weight;
-      estimate.capture_weight += hit_weight;
-    }
-    if (is_own) {
-      own = estimate;
-    }
-    else {
-      reused = estimate;
+      sums[set].radiance += hit_weight * tonemap(captured.rgb, guard);
+      sums[set].hit_weight += hit_weight;
+      sums[set].capture_weight += hit_weight;
     }
   }
   /* A ray drawn from this pixel's own lobe weighs about one (G2 / G1): reused rays that weigh
    * less than that between them all but miss the lobe, and the pixel's own ray stands alone. */
-  RayEstimate estimate = own_ray && reused.weight < 1.0 ? own : reused;
+  RayEstimate estimate = sums[own_ray && sums[REUSED_RAYS].weight < 1.0 ? OWN_RAY : REUSED_RAYS];
   /* Written so that NaN, should any reach here, counts as "no reflection". */
   if (!(estimate.hit_weight > 0.0 && estimate.weight > 0.0)) {
     return;
