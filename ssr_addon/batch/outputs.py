@@ -62,6 +62,14 @@ def write_rgba_exr(path, rgba):
     write_exr(path, {name: rgba[..., index] for index, name in enumerate("RGBA")})
 
 
+def read_rgba_exr(path):
+    """The (H, W, 4) float32 image write_rgba_exr wrote to PATH."""
+    image = oiio.ImageBuf(path)
+    if image.has_error:
+        raise SSRError(f"cannot read {path}: {image.geterror()}")
+    return np.asarray(image.get_pixels(oiio.FLOAT), np.float32)
+
+
 def write_json(path, data):
     """Strict JSON (readable by any parser): a NaN or infinite number is written as null."""
     with written_together([path]) as (partial,), open(partial, "w", encoding="utf-8") as stream:
