@@ -16,7 +16,7 @@ live view follows a moving view. Writes orbit/view_KK.exr per view as it is show
 orbit/view_KK.png for each once the orbit is done: a PNG goes through Blender's colour
 management by way of the scene's image settings, which makes EEVEE's viewport sync the whole
 scene at its next draw, a cost the live view does not pay between two updates (at 320x180 on
-llvmpipe, about 450 ms of a 1.8 s update). Each view's timings (capture, draws, chain) and the
+llvmpipe, 460-630 ms of a 1.7-2.3 s update). Each view's timings (capture, draws, chain) and the
 updates per second go into preview.json.
 """
 import math
