@@ -35,6 +35,9 @@ class ChainState:
     previous_radiance_tx: object = None   # the last frame's lit scene: what its reflections showed
     previous_captures: tuple = None       # the last frame's (planar, cube) captures: kept, or captured afresh
     convergence: ConvergenceCheck = field(default_factory=ConvergenceCheck)  # holds the last check's reflection
+    # Only the camera moves between frames (NavigatedViews): the light at a hit is what it was, and
+    # a change of it is the captures' noise (one sample now, many before), never a stale history.
+    scene_holds_still: bool = False
 
     @classmethod
     def still(cls):
@@ -268,7 +271,8 @@ class FrameRun:
         mode = "none" if not has_history else ("animation" if first else "still")
         previous = state.previous_world_to_clip if has_history else frame.world_to_clip
         # A frame's own iterations see one instant: only its first compares with the last frame.
-        resources["previous_radiance"] = state.previous_radiance_tx if mode == "animation" else resources["radiance"]
+        light_may_change = mode == "animation" and not state.scene_holds_still
+        resources["previous_radiance"] = state.previous_radiance_tx if light_may_change else resources["radiance"]
         for output in gpu_passes.TEMPORAL.outputs:  # the history the iteration reads
             # Without history nothing reads it (history_lib.glsl); any texture not drawn into will do.
             resources[output.history[:-len("_tx")]] = state.pool.get(

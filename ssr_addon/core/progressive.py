@@ -108,7 +108,7 @@ class NavigatedViews:
 
     def __init__(self, settings, pool=None):
         self.settings = settings
-        self.state = ChainState()
+        self.state = ChainState(scene_holds_still=True)
         if pool is not None:
             self.state.pool = pool
         self._views = 0
