@@ -26,7 +26,7 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 # Two test processes, each test file whole in one (its module fixtures render once): on two cores
-# the suite took 25 minutes from a clean clone where one process took 48-56 (CI, stops 39-40).
+# the suite takes about half as long as in one process.
 TEST_WORKERS := -n 2 --dist loadfile
 
 # Renders the bundled demo scene with SSR off and on into $(OUT)/none and $(OUT)/ssr, then
