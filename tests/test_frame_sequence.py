@@ -219,23 +219,34 @@ def test_mirror_only_cutoff_and_non_finite_radiance_stay_finite(gpu_backend):
     assert (confidence[(roughness == 0) & (normal[..., 1] > 0.5)] > 0).sum() > 50, "mirrors keep SSR"
 
 
+MIRROR_FLOOR_SIZE = (64, 40)
+
+
+def mirror_floor_reflection_change(state, radiance_then, radiance_now):
+    """Four frames of STATE over a mirror floor before a wall, lit by RADIANCE_THEN ((H, W, 4) at
+    MIRROR_FLOOR_SIZE), then one lit by RADIANCE_NOW, nothing moving: the last frame's reflection over
+    the one before it, (N, 3) on the floor pixels SSR fully resolves in both."""
+    width, height = MIRROR_FLOOR_SIZE
+    projection = perspective(width, height)
+    depth, normal = raycast(width, height, projection, [((-30.0, -1.0, -9.0), (30.0, 30.0, -8.0))], floor_y=-1.0)
+    settings = ChainSettings(border_fade=0.0, camera_facing_fade=0.0)
+    for _ in range(4):
+        before, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, radiance_then,
+                                        state=state)
+    after, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, radiance_now, state=state)
+    floor = (normal[..., 1] > 0.5) & (before["reflection"][..., 3] > 0.99) & (after["reflection"][..., 3] > 0.99)
+    assert floor.sum() > 300
+    return after["reflection"][floor][:, :3] / before["reflection"][floor][:, :3]
+
+
 def test_light_that_changes_under_a_still_camera_shows_at_once(gpu_backend):
     """Nothing moves, but the lit scene doubles in brightness at frame 4 (an animated lamp):
     the Vector pass shows nothing, yet the reflection must show the new light in that very
     frame, not average it into the history a still shot keeps for ever. Mirror floor, so the
     reflection is exactly the radiance it hits, without noise."""
-    width, height = 64, 40
-    projection = perspective(width, height)
-    depth, normal = raycast(width, height, projection, [((-30.0, -1.0, -9.0), (30.0, 30.0, -8.0))], floor_y=-1.0)
-    settings = ChainSettings(border_fade=0.0, camera_facing_fade=0.0)
-    state = animation_state()
+    width, height = MIRROR_FLOOR_SIZE
     lit = np.ones((height, width, 4), np.float32)
-    for _ in range(4):
-        before, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, lit, state=state)
-    after, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, 2 * lit, state=state)
-    floor = (normal[..., 1] > 0.5) & (before["reflection"][..., 3] > 0.99) & (after["reflection"][..., 3] > 0.99)
-    assert floor.sum() > 300
-    ratio = after["reflection"][floor][:, :3] / before["reflection"][floor][:, :3]
+    ratio = mirror_floor_reflection_change(animation_state(), lit, 2 * lit)
     print(f"reflection after the light doubled: {np.median(ratio):.3f} x, lowest {ratio.min():.3f} x")
     assert np.abs(ratio - 2.0).max() <= 0.02, "the reflection lags behind the light"
 
@@ -248,22 +259,13 @@ def test_a_view_the_camera_held_keeps_its_history_through_a_noisier_capture(gpu_
     animation, whose lamps may have changed, restarts from the noisy capture. Mirror floor, so the
     reflection is the radiance it hits."""
     from ssr_addon.core.chain import ChainState
-    width, height = 64, 40
-    projection = perspective(width, height)
-    depth, normal = raycast(width, height, projection, [((-30.0, -1.0, -9.0), (30.0, 30.0, -8.0))], floor_y=-1.0)
-    settings = ChainSettings(border_fade=0.0, camera_facing_fade=0.0)
+    width, height = MIRROR_FLOOR_SIZE
     lit = np.ones((height, width, 4), np.float32)
     noisy = lit.copy()
     noisy[..., :3] *= 1.0 + 0.3 * np.random.default_rng(7).choice([-1.0, 1.0], (height, width, 1))
-    deviations = {}
-    for name, state in (("navigated", ChainState(scene_holds_still=True)), ("animation", ChainState())):
-        for _ in range(4):
-            before, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, lit, state=state)
-        after, _ = run_synthetic_chain(depth, normal, np.zeros_like(depth), projection, settings, noisy, state=state)
-        floor = (normal[..., 1] > 0.5) & (before["reflection"][..., 3] > 0.99) & (after["reflection"][..., 3] > 0.99)
-        assert floor.sum() > 300
-        ratio = after["reflection"][floor][:, :3] / before["reflection"][floor][:, :3]
-        deviations[name] = float(np.abs(ratio - 1.0).mean())
+    deviations = {name: float(np.abs(mirror_floor_reflection_change(state, lit, noisy) - 1.0).mean())
+                  for name, state in (("navigated", ChainState(scene_holds_still=True)),
+                                      ("animation", animation_state()))}
     print(f"mean change of the reflection through the noisy capture: {deviations}")
     # The noisy capture is one sample among the history's many: a tenth of its noise at most.
     assert deviations["navigated"] <= 0.03 < deviations["animation"], deviations
