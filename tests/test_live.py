@@ -236,7 +236,7 @@ def test_a_failing_draw_is_a_message_and_the_view_is_restored(live_view):
 
 def test_data_passes_are_drawn_at_one_sample_and_the_samples_restored(live_view, monkeypatch):
     """A draw renders all the viewport's TAA samples; the passes one sample gives alike (Normal,
-    Position, Glossy Color, the material AOVs) are drawn at one, the noisy ones at the scene's.
+    Glossy Color, the material AOVs, Position where drawn) are drawn at one, the noisy ones at the scene's.
     The scene's samples are as before after a capture, and after one whose draw fails halfway."""
     from ssr_addon.blender.viewport_capture import ViewportCapture
     scene, space, region = live_view
@@ -256,14 +256,14 @@ def test_data_passes_are_drawn_at_one_sample_and_the_samples_restored(live_view,
     try:
         _tick_until(session, scene, clock, lambda: drawn)
         samples = dict(drawn)
-        assert {samples[name] for name in ("NORMAL", "POSITION", "SPECULAR_COLOR")} == {1}, drawn
+        assert {samples[name] for name in ("NORMAL", "SPECULAR_COLOR", "ssr_roughness")} == {1}, drawn
         assert samples["COMBINED"] == samples["SPECULAR_LIGHT"] == 6, drawn
         assert scene.eevee.taa_samples == 6
         drawn.clear()
         space.region_3d.view_location += mathutils.Vector((0.02, 0.0, 0.0))  # moving: every pass at one sample
         _tick_until(session, scene, clock, lambda: drawn)
         assert {samples for _, samples in drawn} == {1} and scene.eevee.taa_samples == 6, drawn
-        fail_at.append("SPECULAR_LIGHT")  # after the one-sample Normal and Position
+        fail_at.append("SPECULAR_LIGHT")  # after the one-sample Normal and Glossy Color
         space.region_3d.view_location += mathutils.Vector((0.02, 0.0, 0.0))
         with pytest.raises(SSRError, match="SPECULAR_LIGHT"):  # a moving view's capture fails halfway
             session.tick(scene, now=clock[0] + 1.0)
@@ -275,6 +275,72 @@ def test_data_passes_are_drawn_at_one_sample_and_the_samples_restored(live_view,
         assert scene.eevee.taa_samples == 6
     finally:
         session.release()
+
+
+def _ray_cast_depth(scene, view_layer, view, projection, size, name):
+    """View-axis distance of the first surface along each pixel centre's ray (BVH ray casts, not
+    the rasteriser), NaN where the ray meets nothing; and where the surface is object NAME's."""
+    width, height = size
+    camera_to_world = np.linalg.inv(view)
+    origin = mathutils.Vector(camera_to_world[:3, 3])
+    depsgraph = view_layer.depsgraph
+    depth, on_object = np.full((height, width), np.nan), np.zeros((height, width), bool)
+    for row in range(height):
+        for column in range(width):
+            ndc = np.array([(column + 0.5) / width * 2 - 1, 1 - (row + 0.5) / height * 2, -1.0, 1.0])
+            point = np.linalg.inv(projection) @ ndc
+            direction = mathutils.Vector(camera_to_world[:3, :3] @ (point[:3] / point[3])).normalized()
+            hit, location, _, _, hit_object, _ = scene.ray_cast(depsgraph, origin, direction)
+            if hit:
+                depth[row, column] = -(view[2, :3] @ np.array(location) + view[2, 3])
+                on_object[row, column] = hit_object.name == name
+    return depth, on_object
+
+
+def test_a_capture_finds_depth_in_the_materials_and_draws_position_only_for_surfaces_without_one(live_view):
+    """Depth comes with the roughness AOV (one draw less a capture); where a surface on screen
+    has no node material to write it, the capture draws the Position pass as well. Either way it
+    is the distance a ray cast finds, to half precision."""
+    from ssr_addon.blender.render_setup import rendered_view_layer
+    from ssr_addon.blender.scene_io import camera_matrices
+    from ssr_addon.blender.viewport_capture import ViewportCapture
+    scene, space, region = live_view
+    size = (64, 36)
+    view_layer = rendered_view_layer(scene)
+    view, projection = (np.asarray(matrix) for matrix in camera_matrices(scene, *size))
+    clip = scene.camera.data.clip_start, scene.camera.data.clip_end
+    capture = ViewportCapture(space, region)
+    cube = scene.objects["CubeGreen"]
+
+    def captured_depth():
+        draws = capture.draws
+        passes = capture.capture(scene, view_layer, view, projection, size, clip, "analytic", samples=1)
+        return passes.depth, capture.draws - draws
+
+    try:
+        with TemporaryChanges() as changes:
+            changes.set(space.shading, "type", "RENDERED")
+            with_materials, draws = captured_depth()
+            cube_material = cube.material_slots[0].material
+            cube.material_slots[0].material = None
+            try:
+                without_one, draws_without = captured_depth()
+            finally:
+                cube.material_slots[0].material = cube_material
+    finally:
+        capture.release()
+    expected, on_cube = _ray_cast_depth(scene, view_layer, view, projection, size, cube.name)
+    # Inside surfaces (not their antialiased edges): depth is not blended there.
+    inside = np.isfinite(expected)
+    for axis in (0, 1):
+        for shift in (-1, 1):
+            neighbour = np.roll(expected, shift, axis=axis)
+            inside &= np.isfinite(neighbour) & (np.abs(neighbour - expected) <= 0.05 * expected)
+    assert inside.sum() > 500 and (inside & on_cube).sum() >= 4, (inside.sum(), (inside & on_cube).sum())
+    assert draws_without == draws + 1  # the Position pass, drawn only for the bare cube
+    for depth in (with_materials, without_one):
+        assert np.abs(depth - expected)[inside].max() <= 2e-3 * expected[inside].max(), \
+            np.abs(depth - expected)[inside].max()
 
 
 def test_unregistering_stops_the_session_and_leaves_no_timer(live_view):

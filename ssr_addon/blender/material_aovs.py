@@ -5,10 +5,11 @@ by what its surface's specular lobe reads (constants, textures, node chains,
 through groups and shader mixes: see specular_lobes). Everything added is
 removed again through TemporaryChanges.
 
-- ROUGHNESS_AOV is a colour (roughness, coverage, 0): pixels no material wrote
-  (objects without a node material, the sky) read coverage 0 and are treated
-  as fully rough, so SSR leaves them alone. Dividing by coverage undoes the
-  pixel filter's averaging at anti-aliased edges.
+- ROUGHNESS_AOV is a colour (roughness, coverage, view-axis depth): pixels no
+  material wrote (objects without a node material, the sky) read coverage 0 and
+  are treated as fully rough, so SSR leaves them alone. Dividing by coverage
+  undoes the pixel filter's averaging at anti-aliased edges. The depth spares a
+  viewport capture its Position draw (viewport_capture).
 - F0_AOV is the specular reflectance at normal incidence, which the DFG table
   turns into the FG term.
 - One roughness cannot describe two lobes. A Mix Shader's F0 is the mix of its
@@ -77,6 +78,7 @@ def _wire_material(material, target, reader, changes):
     packed = build.node("ShaderNodeCombineXYZ")
     build.feed(1.0 if lobe is None else lobe.roughness, packed.inputs["X"])
     packed.inputs["Y"].default_value = 1.0
+    build.feed(build.node("ShaderNodeCameraData").outputs["View Z Depth"], packed.inputs["Z"])
     _aov(build, ROUGHNESS_AOV, packed.outputs["Vector"])
     if lobe is not None:
         _aov(build, F0_AOV, lobe.f0)

@@ -18,7 +18,7 @@ from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
 from .scene_captures import SceneCaptures
 from .render_setup import apply_render_setup, rendered_view_layer
-from .scene_io import camera_matrices
+from .scene_io import camera_matrices, shows_a_surface
 
 
 def render_passes(scene, setup, timer=None, captures=None):
@@ -104,7 +104,7 @@ def surface_layers(layers):
     depth = pass_layer(layers, "Depth")[..., 0].copy()
     # The world has no normal; its depth is about clip_end in EEVEE (sometimes a hair
     # below it) and 1e10 in Cycles. Give it one unmistakable value.
-    depth[np.linalg.norm(normal, axis=-1) < 0.5] = BACKGROUND_DEPTH
+    depth[~shows_a_surface(normal)] = BACKGROUND_DEPTH
     return depth, normal, roughness, coverage
 
 

@@ -34,7 +34,7 @@ from ..core.inputs import BACKGROUND_DEPTH
 from .baselines import default_probe_placement, rendered_geometry
 from .exr_render import pass_layer, render_to_exr
 from .overrides import TemporaryChanges
-from .scene_io import camera_matrices, view_depth
+from .scene_io import camera_matrices, shows_a_surface, view_depth
 
 # Under fallback=auto the frame gets a capture when the reflector holds at least this share of
 # its reflected light (the specular colour of every pixel SSR traces from).
@@ -144,7 +144,7 @@ def _hidden_for_capture(scene, reflector, plane):
 
 def _capture(scene, reflector, plane, view, projection, radiance, normal, depth):
     depth = depth.copy()
-    depth[np.linalg.norm(normal, axis=-1) < 0.5] = BACKGROUND_DEPTH
+    depth[~shows_a_surface(normal)] = BACKGROUND_DEPTH
     return PlanarCapture(np.ascontiguousarray(radiance, dtype=np.float32), depth.astype(np.float32),
                          np.ascontiguousarray(normal, dtype=np.float32), view, projection, plane, reflector.name)
 
@@ -214,7 +214,7 @@ def draw_cube_capture(scene, view_layer, viewport, side, samples):
         layers = viewport.draw_passes(scene, view_layer, view, projection, (side, side), {
             "Combined": ("COMBINED", 4, samples), "Normal": ("NORMAL", 3, 1), "Position": ("POSITION", 3, 1)})
         face_depth = view_depth(layers["Position"], view)[..., 0]
-        face_depth[np.linalg.norm(layers["Normal"], axis=-1) < 0.5] = BACKGROUND_DEPTH
+        face_depth[~shows_a_surface(layers["Normal"])] = BACKGROUND_DEPTH
         radiance.append(layers["Combined"])
         depth.append(face_depth)
     return CubeCapture(cube_atlas(radiance), cube_atlas(depth), centre, views)
@@ -238,7 +238,7 @@ def render_cube_capture(scene, side, folder, changes):
         camera.matrix_world = Matrix(np.linalg.inv(view).tolist())
         layers = render_to_exr(scene, os.path.join(folder, f"cube_face{index}.exr"), changes)
         face_depth = pass_layer(layers, "Depth")[..., 0].copy()
-        face_depth[np.linalg.norm(pass_layer(layers, "Normal"), axis=-1) < 0.5] = BACKGROUND_DEPTH
+        face_depth[~shows_a_surface(pass_layer(layers, "Normal"))] = BACKGROUND_DEPTH
         radiance.append(pass_layer(layers, "Combined"))
         depth.append(face_depth)
     return CubeCapture(cube_atlas(radiance), cube_atlas(depth), centre, views)

@@ -89,6 +89,11 @@ def camera_matrices(scene, width, height):
     return np.array(view, dtype=np.float32), np.array(projection, dtype=np.float32)
 
 
+def shows_a_surface(normal):
+    """Where a Normal pass ((H, W, 3)) shows a surface rather than the world, which has no normal."""
+    return np.linalg.norm(normal, axis=-1) >= 0.5
+
+
 def view_depth(position, view_matrix):
     """Distance along the view axis of each pixel's world POSITION ((H, W, 3)), as an (H, W, 1) array."""
     view = np.asarray(view_matrix, np.float32)

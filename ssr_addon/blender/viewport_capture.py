@@ -6,7 +6,9 @@ viewport's TAA samples (scene.eevee.taa_samples), so the data passes (ONE_SAMPLE
 drawn at one. A capture yields the same RenderPasses a render does
 (render_passes.passes_from_layers), so the chain cannot tell them apart:
 - Combined, Normal, Specular Light and Color, and the material AOVs come as they are;
-- depth is the view-axis distance of the Position pass;
+- depth is the view-axis distance the materials write into the roughness AOV
+  (material_aovs); only where a surface on screen has no node material to write it
+  is the Position pass drawn as well, and depth taken from it;
 - lamp highlights are split off Specular Light as a render splits them
   (render_passes.eevee_lamp_light): computed in the chain (analytic), or a draw of the lamps
   alone (lamp_renders.lamps_alone), with the Shadow pass where the split is unshadowed;
@@ -25,9 +27,9 @@ from ..core.gpu_backend import download, lap
 from .lamp_renders import lamps_alone
 from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
-from .render_passes import eevee_lamp_light, passes_from_layers, surface_layers
+from .render_passes import eevee_lamp_light, passes_from_layers, surface_layers, undo_coverage
 from .render_setup import SSR_BASE_RAYTRACING, decide_lamp_split, use_eevee_raytracing
-from .scene_io import view_depth
+from .scene_io import shows_a_surface, view_depth
 
 # Shadings whose viewport draw is EEVEE's and has render passes.
 CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
@@ -79,13 +81,16 @@ class ViewportCapture:
             if warnings is None:
                 warnings = self._set_up(scene, view_layer, changes)
             wanted = dict(VIEWPORT_PASSES, **({"Shadow": "SHADOW"} if split.needs_shadow_pass else {}))
-            # A render's passes have three channels but Combined: so do these.
-            layers = self.draw_passes(scene, view_layer, view_matrix, projection_matrix, size, {
-                name: (render_pass, 4 if name == "Combined" else 3,
-                       1 if name in ONE_SAMPLE_PASSES else samples)
-                for name, render_pass in wanted.items()})
+
+            def draw(names):
+                # A render's passes have three channels but Combined: so do these.
+                return self.draw_passes(scene, view_layer, view_matrix, projection_matrix, size, {
+                    name: (wanted[name], 4 if name == "Combined" else 3, 1 if name in ONE_SAMPLE_PASSES else samples)
+                    for name in names})
+            layers = draw([name for name in wanted if name != "Position"])
+            depth = material_depth(layers)
+            layers["Depth"] = depth if depth is not None else view_depth(draw(["Position"])["Position"], view_matrix)
             lap(timer, "capture")
-            layers["Depth"] = view_depth(layers.pop("Position"), view_matrix)
             surface = surface_layers(layers)
 
             def rendered_lamp_specular(shadows):
@@ -187,6 +192,16 @@ class ViewportCapture:
         if self._offscreen is not None:
             self._offscreen.free()
             self._offscreen = None
+
+
+def material_depth(layers):
+    """The view-axis depth the materials wrote into LAYERS' roughness AOV, (H, W, 1); None where
+    a surface (a pixel with a normal) is mostly unwritten: it has no node material."""
+    aov = layers[ROUGHNESS_AOV]
+    coverage = aov[..., 1]
+    if np.any(shows_a_surface(layers["Normal"]) & (coverage < 0.25)):
+        return None
+    return undo_coverage(aov[..., 2], coverage, fallback=0.0)[..., None]
 
 
 def _matrix(array):
