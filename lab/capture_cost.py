@@ -1,12 +1,14 @@
 """What the fallback hierarchy's captures cost, drawn through a 3D View or rendered, and how close
 a drawn capture is to a rendered one.
 
-    python -m lab captures [--scenes NAME ...] [--resolution WxH] [--page docs/measurements.md]
+    python -m lab captures [--scenes NAME ...] [--resolutions WxH ...] [--page docs/measurements.md]
 
-For each scene: the frame's own render (the second of two: the first compiles), the planar
-capture and the depth cube map rendered (scene_captures.render_*_capture, a fresh EEVEE
-instance each) and drawn through the 3D View (GPUOffScreen.draw_view3d: the first draw, which
-compiles the viewport's shaders, and the next after the camera moved). Drawn and rendered
+For each scene and resolution: the frame's own render (the second of two: the first compiles),
+the same frame rendered with the guard band (level 1: wider by the default guard_band_size on
+each side, a render of its own in place of the frame's), the planar capture and the depth cube
+map rendered (scene_captures.render_*_capture, a fresh EEVEE instance each) and drawn through
+the 3D View (GPUOffScreen.draw_view3d: the first draw, which compiles the viewport's shaders,
+and the next after the camera moved). Drawn and rendered
 planar captures are compared with a 64-sample render of the capture: the relative mean
 absolute difference of their radiance, beside that of a render at the frame's samples (EEVEE's
 own noise), and the frame's render right after a drawn capture: EEVEE's render and viewport
@@ -31,13 +33,23 @@ from ssr_addon.blender.scene_io import load_scene
 from ssr_addon.blender.viewport_capture import headless_viewport
 from ssr_addon.core.captures import cube_face_views
 from ssr_addon.core.gpu_backend import describe_gpu
+from ssr_addon.core.settings import ChainSettings
 from .bench.scenes import resolve_scene, scene_label
-from .docs import require_page, rewrite_block, scenes_parser
+from .docs import format_resolutions, require_page, rewrite_block, scenes_parser
 
-SCENES = ("hidden_underside", "steel_room", "mirror_floor")
+# The room: every level has work there (a polished floor, walls and a glowing ceiling off screen).
+SCENES = ("steel_room",)
+# The issue's two sizes: the bench's, and a user's preview render.
+RESOLUTIONS = [(160, 90), (1280, 720)]
 SAMPLES = 16
 REFERENCE_SAMPLES = 64
 CUBE_SIZE = 128
+# The table's columns after the frame's render: measure()'s keys, and how the table names them.
+HEADINGS = {"guard band render": "guard band render", "planar render": "planar render",
+            "planar cycles": "planar Cycles", "planar draw first": "planar drawn, first",
+            "planar draw": "planar drawn", "render after draw": "frame render after a draw",
+            "cube render": "cube render", "cube cycles": "cube Cycles", "cube multi-view": "cube multi-view",
+            "cube draw first": "cube drawn, first", "cube draw": "cube drawn"}
 
 
 def _timed(make):
@@ -82,9 +94,12 @@ def measure(name, resolution):
     for _ in range(2):
         passes, render_s = _timed(lambda: render_passes(scene, decide_render(scene, samples=SAMPLES,
                                                                              resolution=resolution)))
+    guard_band = decide_render(scene, samples=SAMPLES, resolution=resolution,
+                               guard_band=ChainSettings().guard_band_size)
     found = find_reflector(scene, passes, 1.0)
     found = found[:2] if found is not None else None
-    row = {"scene": scene_label(resolve_scene(name)), "render": render_s}
+    row = {"scene": scene_label(resolve_scene(name)), "resolution": "{}x{}".format(*resolution), "render": render_s,
+           "guard band render": _timed(lambda: render_passes(scene, guard_band))[1]}
     view_layer = rendered_view_layer(scene)
 
     def rendered(kind, samples, capture_engine="eevee"):
@@ -140,28 +155,26 @@ def measure(name, resolution):
 
 
 def main(argv):
-    arguments = scenes_parser("captures", __doc__, SCENES, (320, 180), "capture-cost").parse_args(argv)
+    arguments = scenes_parser("captures", __doc__, SCENES, RESOLUTIONS, "capture-cost").parse_args(argv)
     require_page(arguments.page)
-    rows = [measure(name, arguments.resolution) for name in arguments.scenes]
-    width, height = arguments.resolution
-    lines = [f"Latest run: `python -m lab captures --resolution {width}x{height}"
+    rows = [measure(name, resolution) for name in arguments.scenes for resolution in arguments.resolutions]
+    lines = [f"Latest run: `python -m lab captures --scenes {' '.join(arguments.scenes)} "
+             f"--resolutions {format_resolutions(arguments.resolutions)}"
              f"{' --page docs/measurements.md' if arguments.page else ''}` on {describe_gpu()['renderer']}; "
              f"EEVEE at {SAMPLES} samples, cube faces {CUBE_SIZE}x{CUBE_SIZE}. Seconds, and in brackets as a "
              f"multiple of the frame's own render. Drawn: through the 3D View, first (compiling) and after "
              f"the camera moved. Planar error: relative mean absolute difference from a {REFERENCE_SAMPLES}-sample "
              f"render of the capture, drawn / rendered at {SAMPLES} samples (EEVEE's own noise).", "",
-             "| scene | frame render s | planar render | planar Cycles | planar drawn, first | planar drawn "
-             "| frame render after a draw | cube render | cube Cycles | cube multi-view | cube drawn, first | cube drawn "
-             "| planar error drawn / rendered |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "| " + " | ".join(("scene", "resolution", "frame render s") + tuple(HEADINGS.values())
+                             + ("planar error drawn / rendered",)) + " |",
+             "|---" * (len(HEADINGS) + 4) + "|"]
     for row in rows:
         def cell(key):
             return f"{row[key]:.2f} ({row[key] / row['render']:.2f}x)" if key in row else "-"
         error = row.get("planar error")
-        lines.append(f"| {row['scene']} | {row['render']:.2f} | " + " | ".join(cell(key) for key in (
-            "planar render", "planar cycles", "planar draw first", "planar draw", "render after draw", "cube render",
-            "cube cycles", "cube multi-view", "cube draw first", "cube draw"))
-            + f" | {f'{error[0]:.2%} / {error[1]:.2%}' if error else '-'} |")
+        lines.append(f"| {row['scene']} | {row['resolution']} | {row['render']:.2f} | "
+                     + " | ".join(cell(key) for key in HEADINGS)
+                     + f" | {f'{error[0]:.2%} / {error[1]:.2%}' if error else '-'} |")
     text = "\n".join(lines)
     print(text)
     if arguments.page:

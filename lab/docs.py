@@ -38,11 +38,19 @@ def page_link(page, path):
     return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(page)))
 
 
+def format_resolutions(resolutions):
+    """RESOLUTIONS ((width, height) pairs) as a command line names them: "160x90 1280x720"."""
+    return " ".join("{}x{}".format(*resolution) for resolution in resolutions)
+
+
 def scenes_parser(command, doc, scenes, resolution, block):
-    """The argument parser of a lab COMMAND that measures SCENES at a RESOLUTION and may rewrite
-    the page's BLOCK: --scenes, --resolution and --page."""
+    """The argument parser of a lab COMMAND that measures SCENES at a RESOLUTION (a list of them:
+    --resolutions) and may rewrite the page's BLOCK: --scenes, --resolution(s) and --page."""
     parser = ArgumentParser(prog=f"python -m lab {command}", description=doc.splitlines()[0])
     parser.add_argument("--scenes", nargs="+", default=list(scenes))
-    parser.add_argument("--resolution", type=parse_resolution, default=resolution)
+    if isinstance(resolution, list):
+        parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=resolution)
+    else:
+        parser.add_argument("--resolution", type=parse_resolution, default=resolution)
     parser.add_argument("--page", help=f"rewrite the {block} block of this markdown page")
     return parser

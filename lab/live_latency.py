@@ -35,7 +35,7 @@ from ssr_addon.core.settings import ChainSettings
 from ssr_addon.ui.live import draw_image
 from .bench.scenes import REPO, resolve_scene
 from .bench.stability import FLICKER_LIMIT
-from .docs import page_link, require_page, rewrite_block
+from .docs import format_resolutions, page_link, require_page, rewrite_block
 
 SCENE = "mirror_floor"
 OUT = os.path.join(REPO, "docs", "live")
@@ -168,10 +168,6 @@ def main(argv):
     print(text)
     if arguments.page:
         rewrite_block(arguments.page, arguments.block, text, "Live SSR in the viewport")
-
-
-def format_resolutions(resolutions):
-    return " ".join("{}x{}".format(*resolution) for resolution in resolutions)
 
 
 def reflective_mask(passes):
