@@ -29,7 +29,7 @@ from ssr_addon.blender.render_passes import render_passes
 from ssr_addon.blender.render_setup import apply_render_setup, decide_render, rendered_view_layer
 from ssr_addon.blender.scene_captures import (SceneCaptures, cube_centre, draw_cube_capture, draw_planar_capture,
                                               find_reflector, render_cube_capture, render_planar_capture)
-from ssr_addon.blender.scene_io import load_scene
+from ssr_addon.blender.scene_io import camera_matrices, load_scene
 from ssr_addon.blender.viewport_capture import headless_viewport
 from ssr_addon.core.captures import cube_face_views
 from ssr_addon.core.gpu_backend import describe_gpu
@@ -116,7 +116,8 @@ def measure(name, resolution):
         with TemporaryChanges() as changes:
             apply_render_setup(setup, scene, view_layer, changes)
             if kind == "planar":
-                return draw_planar_capture(scene, view_layer, viewport, resolution, SAMPLES, *found, changes)
+                return draw_planar_capture(scene, view_layer, viewport, camera_matrices(scene, *resolution), resolution,
+                                           SAMPLES, *found, changes)
             return draw_cube_capture(scene, view_layer, viewport, CUBE_SIZE, SAMPLES)
 
     viewport = headless_viewport()

@@ -19,14 +19,14 @@ pytestmark = [pytest.mark.blender, pytest.mark.slow]
 MARGIN_PX = 2
 
 
-def underside_mirror_pixels(width, height):
-    """(H, W) pixels well inside the floor's mirror image of the slab's glowing underside."""
+def underside_mirror_pixels(width, height, camera=None):
+    """(H, W) pixels well inside the floor's mirror image of the slab's glowing underside, as the
+    scene camera sees it or CAMERA, a view's (world to view, view to clip)."""
     import runpy
     from matplotlib.path import Path
     from ssr_addon.blender.scene_io import camera_matrices, load_scene
     path = os.path.join(SCENES, "hidden_underside.py")
-    scene = load_scene(path)
-    view, projection = camera_matrices(scene, width, height)
+    view, projection = camera or camera_matrices(load_scene(path), width, height)
     values = runpy.run_path(path)
     (x, y, z), half = values["SLAB_CENTER"], values["SLAB_HALF_SIZE"]
     z -= values["UNDERSIDE_GAP"]
@@ -49,15 +49,49 @@ def test_rendered_planar_capture_mirrors_the_hidden_underside(render_scene):
     def green(fallback):
         passes = render_scene("hidden_underside", "ssr", "--resolution", "160x90", "--set",
                               f"fallback={fallback}").passes()
-        reflection = np.stack([passes[f"SSR Reflection.{c}"] for c in "RGB"], -1)
-        return (reflection[..., 1] > 0.5) & (reflection[..., 1] > 2.5 * np.maximum(reflection[..., 0],
-                                                                                     reflection[..., 2])), passes
+        return glowing_green(np.stack([passes[f"SSR Reflection.{c}"] for c in "RGB"], -1)), passes
 
     shown, passes = green("planar")
     assert shown[judged].mean() > 0.98, f"{(~shown & judged).sum()} of {judged.sum()} mirror pixels not green"
     assert (passes["SSR Resolved By.V"][judged] == RAY_OUTCOMES["planar"]).mean() > 0.9
     plain, _ = green("off")
     assert plain[judged].mean() < 0.2, "screen space alone should not see the underside"
+
+
+def glowing_green(image):
+    """(H, W) where IMAGE shows the underside's green glow."""
+    return (image[..., 1] > 0.5) & (image[..., 1] > 2.5 * np.maximum(image[..., 0], image[..., 2]))
+
+
+def test_the_live_view_mirrors_the_hidden_underside_held_and_moving(gpu_backend, tmp_path):
+    """The live view (preview, headless) traces past the screen as a render does under the default
+    fallback=auto: a held view draws the floor's planar capture through the 3D View, and a view on
+    the move traces the held view's capture (a capture keeps its own camera), so the glowing
+    underside stays in the floor's analytic mirror image of each view."""
+    from ssr_addon.batch.preview import run_preview
+    from ssr_addon.blender.scene_io import load_scene
+    from ssr_addon.core.gpu_backend import download
+    from ssr_addon.core.settings import ChainSettings
+    from conftest import read_exr, rgb
+    scene = load_scene(os.path.join(SCENES, "hidden_underside.py"))
+    moving = {}
+
+    def on_view(index, passes, outputs, recapture):
+        moving[index] = ((passes.view_matrix, passes.projection_matrix), download(outputs["final"])[..., :3],
+                         passes.capture)
+
+    timings = run_preview(scene, tmp_path, ChainSettings(), (160, 90), orbit=2, log=lambda line: None,
+                          on_view=on_view)
+    held = rgb(read_exr(tmp_path / "preview.exr"))
+    judged = underside_mirror_pixels(160, 90)
+    assert judged.sum() > 200
+    shown = glowing_green(held)
+    assert shown[judged].mean() > 0.98, f"{(~shown & judged).sum()} of {judged.sum()} mirror pixels not green"
+    assert "planar_capture" in timings["capture_ms"]
+    for index, (camera, image, capture) in moving.items():
+        judged = underside_mirror_pixels(160, 90, camera)
+        shown = glowing_green(image)
+        assert capture is not None and shown[judged].mean() > 0.98, (index, (~shown & judged).sum())
 
 
 

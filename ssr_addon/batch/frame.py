@@ -13,10 +13,10 @@ from ..blender.gpu_context import ensure_backend
 from ..blender.reflected_rays import reaching_geometry
 from ..blender.scene_captures import SceneCaptures
 from ..blender.render_passes import render_passes
-from ..blender.render_setup import decide_render
+from ..blender.render_setup import RenderSetup, decide_render, planar_capture_mode
 from ..core.chain import ChainState, run_chain
 from ..core.errors import SSRError
-from ..core.gpu_backend import StageTimer, download
+from ..core.gpu_backend import StageTimer, download, lap
 from ..core.inputs import BACKGROUND_DEPTH, ChainInputs, crop_image
 from ..core.ray_outcomes import unresolved_shares
 from ..core.settings import fallback_levels
@@ -38,18 +38,19 @@ class FrameImages:
 
 
 class FrameFallbacks:
-    """The fallback hierarchy's state over a run of frames (a still is a run of one): the scene
-    captures (blender.scene_captures.SceneCaptures) and, under fallback=auto, whether the run
-    has a guard band and a depth cube map.
+    """The fallback hierarchy's state over a run of frames (a still is a run of one) or of views
+    drawn through a 3D View (add_view_captures): the scene captures
+    (blender.scene_captures.SceneCaptures) and, under fallback=auto, whether the run has a guard
+    band and a depth cube map.
     The run's first frame decides those from what its rays left unresolved towards geometry
     (a ray that leaves the frame for an open sky finds in the world what it would find in a
-    capture), and is rendered again with them where it needs either."""
+    capture), and is rendered again with them where it needs either.
+    A run of frames renders its captures (VIEWPORT None): drawn between a frame's renders, they
+    made those renders slower (blender.scene_captures), and in Blender's window the 3D View is
+    the artist's. A run of views draws them through the VIEWPORT its views are drawn through."""
 
-    def __init__(self):
-        # Rendered, not drawn through a 3D View: drawn between a frame's renders, they made
-        # those renders slower (blender.scene_captures). And in Blender's window the 3D View is
-        # the artist's.
-        self.captures = SceneCaptures()
+    def __init__(self, viewport=None):
+        self.captures = SceneCaptures(viewport)
         self.guard_band = self.cube = None  # undecided until the first frame under auto
 
     def decide(self, unresolved):
@@ -58,6 +59,11 @@ class FrameFallbacks:
         self.guard_band = unresolved["left_frame"] >= AUTO_GUARD_BAND_SHARE
         self.cube = unresolved["left_frame"] + unresolved["behind"] >= AUTO_CUBE_SHARE
         return self.guard_band or self.cube
+
+    def reconsider(self):
+        """Decide the levels afresh at the next first frame or held view (a view held elsewhere
+        may lose other rays)."""
+        self.guard_band = self.cube = None
 
     def release(self):
         self.captures.release()
@@ -139,6 +145,45 @@ def _render_frame(scene, request, state, fallbacks, earlier=None):
     images = FrameImages(passes, crop_image(download(outputs["final"]), crop), layers, stats)
     timer.lap("readback")
     return images, timer
+
+
+def add_view_captures(scene, view_layer, passes, settings, fallbacks, samples, timer=None):
+    """Give PASSES, a view drawn through the 3D View of FALLBACKS (a FrameFallbacks: the live
+    view, preview), the captures SETTINGS' fallback asks for, drawn through that view with
+    Combined at SAMPLES: the main reflector's planar capture, and the depth cube map where the
+    fallback lists it or auto decided it (decide_view_cube). The guard band is a render's alone.
+    TIMER gets "planar_capture" and "cube_capture" as a frame's does."""
+    levels = fallback_levels(settings.fallback) if settings.use_ssr else ()
+    cube = "cube" in levels if levels is not None else bool(fallbacks.cube)
+    height, width = passes.depth.shape
+    setup = RenderSetup("eevee", (width, height), samples, planar_capture=planar_capture_mode(
+        settings.fallback if settings.use_ssr else "off"), max_roughness=settings.max_roughness,
+        cube_size=settings.cube_size if cube else 0)
+    passes.capture = fallbacks.captures.planar(scene, view_layer, setup, passes, folder=None)
+    if passes.capture is not None:
+        lap(timer, "planar_capture")
+    passes.cube = fallbacks.captures.cube(scene, view_layer, setup, folder=None)
+    if passes.cube is not None:
+        lap(timer, "cube_capture")
+
+
+def keep_view_captures(passes, held):
+    """PASSES of a moving view with the captures of HELD, the passes of the view it moved from
+    (add_view_captures): each capture keeps its own camera, so rays are traced in it from any
+    view; drawing them again would cost a moving update as many draws again."""
+    passes.capture, passes.cube = held.capture, held.cube
+    return passes
+
+
+def decide_view_cube(scene, passes, outputs, settings, fallbacks):
+    """Under fallback=auto, decide from a view's first image (OUTPUTS of the chain over PASSES,
+    with its planar capture) whether the views get the depth cube map, as a run's first frame
+    decides (FrameFallbacks.decide); True where the cube was undecided and is now wanted."""
+    if not settings.use_ssr or fallback_levels(settings.fallback) is not None or fallbacks.cube is not None:
+        return False
+    layers = read_layers(passes, outputs)
+    fallbacks.decide(unresolved_toward_geometry(scene, passes, layers, settings))
+    return fallbacks.cube
 
 
 def chain_stats(outputs, passes, layers, settings):

@@ -34,6 +34,7 @@ from ..blender.viewport_capture import ViewportCapture, headless_view3d
 from ..core.gpu_backend import StageTimer, download
 from ..core.inputs import BACKGROUND_DEPTH
 from ..core.progressive import STEP_SECONDS, NavigatedViews
+from .frame import FrameFallbacks, add_view_captures, decide_view_cube, keep_view_captures
 from .outputs import prepare_output_folder, read_rgba_exr, write_json, write_rgba_exr, written_together
 
 ORBIT_STEP_DEGREES = 1.0  # a slow orbit: a few pixels of motion a view at the frame's centre
@@ -54,17 +55,35 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
     clip = camera.data.clip_start, camera.data.clip_end
     ensure_backend()
     capture = ViewportCapture(space, region)
+    fallbacks = FrameFallbacks(capture)
+
+    def view_passes(view_matrix, samples=None, timer=None):
+        """The passes of the view VIEW_MATRIX, its noisy passes at SAMPLES (None: the scene's
+        viewport samples)."""
+        return capture.capture(scene, view_layer, view_matrix, projection, size, clip, settings.lamp_split, timer,
+                               samples)
+
+    def capture_view(view_matrix, samples=None, timer=None):
+        """view_passes with the captures the fallback asks for, drawn for that view."""
+        passes = view_passes(view_matrix, samples, timer)
+        add_view_captures(scene, view_layer, passes, settings, fallbacks, samples or scene.eevee.taa_samples, timer)
+        return passes
+
     with TemporaryChanges() as changes:
         changes.set(scene.render, "engine", "BLENDER_EEVEE")
         changes.set(space.shading, "type", "RENDERED")
         started = time.perf_counter()
         capture_timer = StageTimer()
         try:
-            passes = capture.capture(scene, view_layer, view, projection, size, clip, settings.lamp_split,
-                                     capture_timer)
+            passes = capture_view(view, timer=capture_timer)
             views = NavigatedViews(settings)
             refining = views.view(passes, inputs_timer=capture_timer, follow=False)
             first = download(refining.step()["final"])
+            if decide_view_cube(scene, passes, refining.outputs, settings, fallbacks):
+                add_view_captures(scene, view_layer, passes, settings, fallbacks, scene.eevee.taa_samples,
+                                  capture_timer)
+                refining = views.view(passes, inputs_timer=capture_timer, follow=False)
+                first = download(refining.step()["final"])
             first_image_ms = (time.perf_counter() - started) * 1000.0
             while not refining.done and (iterations is None or refining.iterations < iterations):
                 refining.step(STEP_SECONDS, None if iterations is None else iterations - refining.iterations)
@@ -75,14 +94,17 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
                 os.makedirs(os.path.join(out_dir, "orbit"), exist_ok=True)
                 capture.hold_set_up(scene, view_layer, changes)
                 for index, orbit_view in enumerate(orbit_view_matrices(view, target_distance(passes), orbit), 1):
-                    orbit_views.append(_orbit_view(scene, capture, views, view_layer, index, orbit_view, projection,
-                                                   size, clip, settings, out_dir, on_view))
+                    orbit_views.append(_orbit_view(
+                        capture, views, index, out_dir, on_view,
+                        lambda timer, orbit_view=orbit_view: keep_view_captures(
+                            view_passes(orbit_view, ORBIT_SAMPLES, timer), passes),
+                        lambda samples=None, orbit_view=orbit_view: capture_view(orbit_view, samples)))
                 for index in range(1, orbit + 1):
                     exr, png = _orbit_paths(out_dir, index)
                     with written_together([png]) as (partial,):
                         write_display_png(partial, read_rgba_exr(exr), scene)
         finally:
-            capture.release()
+            fallbacks.release()
     chain_ms = sum(refining.timer.milliseconds.values())
     timings = {
         "resolution": list(size),
@@ -115,21 +137,20 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
     return timings
 
 
-def _orbit_view(scene, capture, views, view_layer, index, view, projection, size, clip, settings, out_dir, on_view):
-    """Capture and show orbit view INDEX as the live view follows a moving view; write its EXR
-    and return its timings."""
+def _orbit_view(capture, views, index, out_dir, on_view, moving_passes, capture_view):
+    """Capture and show orbit view INDEX as the live view follows a moving view: MOVING_PASSES(timer)
+    captures it as the live view does while moving; write its EXR and return its timings.
+    CAPTURE_VIEW(samples) captures it with captures of its own (ON_VIEW's recapture)."""
     started = time.perf_counter()
     timer = StageTimer()
     draws = capture.draws
-    passes = capture.capture(scene, view_layer, view, projection, size, clip, settings.lamp_split, timer,
-                             ORBIT_SAMPLES)
+    passes = moving_passes(timer)
     following = views.view(passes, inputs_timer=timer)
     outputs = following.step(max_iterations=1)
     image = download(outputs["final"])
     time_to_image_ms = (time.perf_counter() - started) * 1000.0
     if on_view is not None:
-        on_view(index, passes, outputs, lambda samples=None: capture.capture(
-            scene, view_layer, view, projection, size, clip, settings.lamp_split, samples=samples))
+        on_view(index, passes, outputs, capture_view)
     with written_together(_orbit_paths(out_dir, index)[:1]) as (exr,):
         write_rgba_exr(exr, image)
     return {"view": index, "time_to_image_ms": round(time_to_image_ms, 1),

@@ -63,14 +63,15 @@ def _thin_axis(obj):
     return axis, (high[axis] - low[axis]) / 2.0, across[0] * across[1]
 
 
-def reflector_plane(scene, reflector, axis=2, half_thickness=0.0):
-    """(nx, ny, nz, d) of the face of REFLECTOR across its local AXIS that faces the scene
-    camera (HALF_THICKNESS from its centre, in local units), n towards the camera."""
+def reflector_plane(reflector, viewpoint, axis=2, half_thickness=0.0):
+    """(nx, ny, nz, d) of the face of REFLECTOR across its local AXIS that faces VIEWPOINT (a
+    world position: the camera's), HALF_THICKNESS from its centre in local units, n towards
+    the viewpoint."""
     world = reflector.matrix_world
     local_axis = Vector([1.0 if index == axis else 0.0 for index in range(3)])
     local_centre = sum((Vector(corner) for corner in reflector.bound_box), Vector()) / 8.0
     normal = (world.to_3x3().inverted_safe().transposed() @ local_axis).normalized()
-    camera = scene.camera.matrix_world.translation
+    camera = Vector(viewpoint)
     side = 1.0 if normal.dot(camera - world @ local_centre) >= 0.0 else -1.0
     face = world @ (local_centre + local_axis * half_thickness * side)
     normal *= side
@@ -80,12 +81,14 @@ def reflector_plane(scene, reflector, axis=2, half_thickness=0.0):
 def find_reflector(scene, passes, max_roughness):
     """(object, plane, share) of the scene's main flat reflector: of its REFLECTOR_CANDIDATES
     largest planes and slabs, the one whose plane holds most of the frame's reflected light
-    (reflector_share of PASSES), or None where there is none."""
+    (reflector_share of PASSES), or None where there is none. The plane faces the camera
+    PASSES were seen from."""
+    viewpoint = np.linalg.inv(np.asarray(passes.view_matrix, np.float64))[:3, 3]
     thin = [(obj, found) for obj in rendered_geometry(scene) if (found := _thin_axis(obj)) is not None]
     thin.sort(key=lambda candidate: -candidate[1][2])
     best = None
     for obj, (axis, half_thickness, _) in thin[:REFLECTOR_CANDIDATES]:
-        plane = reflector_plane(scene, obj, axis, half_thickness)
+        plane = reflector_plane(obj, viewpoint, axis, half_thickness)
         share = reflector_share(passes, plane, max_roughness)
         if best is None or share > best[2]:
             best = (obj, plane, share)
@@ -124,10 +127,11 @@ def world_positions(depth, view_matrix, projection_matrix):
     return view_points @ view_to_world[:3, :3].T + view_to_world[:3, 3]
 
 
-def capture_matrices(scene, plane, size):
-    """(world to view, view to clip) of the capture camera of PLANE at SIZE: the scene camera
-    mirrored, its x axis (and so its lens shift) flipped back."""
-    view, projection = camera_matrices(scene, *size)
+def capture_matrices(camera, plane):
+    """(world to view, view to clip) of the capture camera of PLANE: CAMERA, the (world to view,
+    view to clip) of the view the capture serves, mirrored, its x axis (and so its lens shift)
+    flipped back."""
+    view, projection = camera
     camera_to_world = mirror_matrix(plane) @ np.linalg.inv(np.asarray(view, np.float64)) @ _FLIP_X
     return (np.linalg.inv(camera_to_world).astype(np.float32),
             (_FLIP_X @ np.asarray(projection, np.float64) @ _FLIP_X).astype(np.float32))
@@ -149,12 +153,13 @@ def _capture(scene, reflector, plane, view, projection, radiance, normal, depth)
                          np.ascontiguousarray(normal, dtype=np.float32), view, projection, plane, reflector.name)
 
 
-def draw_planar_capture(scene, view_layer, viewport, size, samples, reflector, plane, changes):
-    """The PlanarCapture of PLANE drawn through VIEWPORT (viewport_capture.ViewportCapture):
-    Combined at SAMPLES, normals and positions at one. Hides through CHANGES."""
+def draw_planar_capture(scene, view_layer, viewport, camera, size, samples, reflector, plane, changes):
+    """The PlanarCapture of PLANE for the view CAMERA (world to view, view to clip) at SIZE,
+    drawn through VIEWPORT (viewport_capture.ViewportCapture): Combined at SAMPLES, normals and
+    positions at one. Hides through CHANGES."""
     for obj in _hidden_for_capture(scene, reflector, plane):
         changes.set(obj, "hide_viewport", True)
-    view, projection = capture_matrices(scene, plane, size)
+    view, projection = capture_matrices(camera, plane)
     layers = viewport.draw_passes(scene, view_layer, view, projection, size, {
         "Combined": ("COMBINED", 4, samples), "Normal": ("NORMAL", 3, 1), "Position": ("POSITION", 3, 1)})
     return _capture(scene, reflector, plane, view, projection, layers["Combined"], layers["Normal"],
@@ -162,15 +167,16 @@ def draw_planar_capture(scene, view_layer, viewport, size, samples, reflector, p
 
 
 def render_planar_capture(scene, size, reflector, plane, folder, changes):
-    """The PlanarCapture of PLANE as a render of SCENE (set up for its frame's passes) from a
-    capture camera, at SIZE, into FOLDER. Every change goes through CHANGES."""
+    """The PlanarCapture of PLANE for the scene camera's view as a render of SCENE (set up for
+    its frame's passes) from a capture camera, at SIZE, into FOLDER. Every change goes through
+    CHANGES."""
     camera = scene.camera
     capture_data = camera.data.copy()
     capture_data.shift_x = -camera.data.shift_x
     capture_camera = bpy.data.objects.new("SSR Planar Capture", capture_data)
     scene.collection.objects.link(capture_camera)
     changes.on_restore(lambda: (bpy.data.objects.remove(capture_camera), bpy.data.cameras.remove(capture_data)))
-    view, _ = capture_matrices(scene, plane, size)
+    view, _ = capture_matrices(camera_matrices(scene, *size), plane)
     capture_camera.matrix_world = Matrix(np.linalg.inv(np.asarray(view, np.float64)).tolist())
     changes.set(scene, "camera", capture_camera)
     for obj in _hidden_for_capture(scene, reflector, plane):
@@ -245,19 +251,16 @@ def render_cube_capture(scene, side, folder, changes):
 
 
 class SceneCaptures:
-    """The captures of a run of frames (the planar capture, the depth cube map): drawn through
-    one 3D View where the file has one (VIEWPORT: a viewport_capture.ViewportCapture, or None
-    to render them), and reused while nothing they show changed (capture_key): a still camera
-    over a static set is captured once a shot, and the cube, which does not follow the camera,
-    while the set holds still."""
+    """The captures of a run of frames or of views (the planar capture, the depth cube map):
+    drawn through a 3D View (VIEWPORT: a viewport_capture.ViewportCapture, shaded as the views
+    it captures are), or rendered (VIEWPORT None), and reused while nothing they show changed
+    (capture_key): a still camera over a static set is captured once a shot, and the cube,
+    which does not follow the camera, while the set holds still."""
 
     def __init__(self, viewport=None):
         self.viewport = viewport
         self._kept = {}  # level: (key, capture)
         self.made = []   # the levels captured afresh, in order, since the run began
-        self._held = TemporaryChanges()
-        if viewport is not None:
-            viewport.hold_for_captures(self._held)
 
     def _reuse(self, level, key, make):
         """The capture of LEVEL kept under KEY, or MAKE(changes) afresh: what MAKE changes (a
@@ -299,10 +302,12 @@ class SceneCaptures:
             return None
         found = found[:2]
         size = setup.rendered_size
-        key = (capture_key(scene, with_camera=True), size, setup.samples, setup.engine, setup.capture_engine, found[1])
+        camera = (np.asarray(passes.view_matrix, np.float64), np.asarray(passes.projection_matrix, np.float64))
+        key = (capture_key(scene), tuple(np.round(np.concatenate(camera), 6).ravel()), size, setup.samples,
+               setup.engine, setup.capture_engine, found[1])
         if self._draws(setup):
             return self._reuse("planar", key, lambda changes: draw_planar_capture(
-                scene, view_layer, self.viewport, size, setup.samples, *found, changes))
+                scene, view_layer, self.viewport, camera, size, setup.samples, *found, changes))
 
         def render(changes):
             self.use_capture_engine(scene, setup, changes)
@@ -313,7 +318,7 @@ class SceneCaptures:
         """The CubeCapture SETUP asks for (setup.cube_size: the pixels of a face's side; 0: none)."""
         if not setup.cube_size:
             return None
-        key = (capture_key(scene, with_camera=False), setup.cube_size, setup.samples, setup.engine,
+        key = (capture_key(scene), setup.cube_size, setup.samples, setup.engine,
                setup.capture_engine)
         if self._draws(setup):
             return self._reuse("cube", key, lambda changes: draw_cube_capture(scene, view_layer, self.viewport,
@@ -325,24 +330,21 @@ class SceneCaptures:
         return self._reuse("cube", key, render)
 
     def release(self):
-        self._held.restore()
         if self.viewport is not None:
             self.viewport.release()
         self._kept.clear()
 
 
-def capture_key(scene, with_camera):
+def capture_key(scene):
     """What a capture of SCENE shows, as a value that changes when any of it does: every
-    object's transform and visibility, the frame where anything else is animated (a material,
-    a light, the world), and WITH_CAMERA the camera's lens (its transform is an object's)."""
+    object's transform and visibility but the camera's (a planar capture keys on the view it
+    serves as well), and the frame where anything else is animated (a material, a light, the
+    world)."""
     objects = tuple((obj.name, tuple(map(tuple, obj.matrix_world)), obj.hide_render)
-                    for obj in scene.objects if with_camera or obj != scene.camera)
+                    for obj in scene.objects if obj != scene.camera)
     animated = any(getattr(block, "animation_data", None) is not None and block.animation_data.action is not None
                    for collection in (bpy.data.materials, bpy.data.lights, bpy.data.worlds, bpy.data.node_groups)
                    for block in collection) or any(
                        getattr(block, "node_tree", None) is not None and block.node_tree.animation_data is not None
                        for collection in (bpy.data.materials, bpy.data.worlds) for block in collection)
-    camera = scene.camera.data
-    lens = (camera.lens, camera.shift_x, camera.shift_y, camera.ortho_scale, camera.type, camera.sensor_width,
-            camera.sensor_height, camera.sensor_fit) if with_camera else None
-    return objects, lens, scene.frame_current if animated else None
+    return objects, scene.frame_current if animated else None

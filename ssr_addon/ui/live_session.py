@@ -25,6 +25,7 @@ from dataclasses import astuple
 
 import numpy as np
 
+from ..batch.frame import FrameFallbacks, add_view_captures, decide_view_cube, keep_view_captures
 from ..blender.baselines import apply_baseline
 from ..blender.colour_management import DisplayTransform, view_settings_key
 from ..blender.gpu_context import ensure_backend
@@ -49,6 +50,7 @@ class LiveSession:
     def __init__(self, space, region, region_3d):
         self.space, self.region, self.region_3d = space, region, region_3d
         self.capture = ViewportCapture(space, region)
+        self.fallbacks = FrameFallbacks(self.capture)  # the captures past the screen, drawn through this view
         self.pool = TexturePool()
         self.scene_version = 0       # bumped by scene_updated when the scene changes
         self._seen_version = 0
@@ -131,6 +133,7 @@ class LiveSession:
             if self._views is not None and moved and scene.ssr.comparison_mode == "SSR":
                 if edited:
                     self._views.forget()
+                    self._passes = None  # nor are the last view's captures what the scene shows now
                 self._follow(scene, now)
                 return True
             self._stop_following()
@@ -143,6 +146,8 @@ class LiveSession:
             self._chain_key = chain_key
             if self._passes is not None:
                 self._views = NavigatedViews(chain_settings(scene.ssr), self.pool)
+                if self._held:  # the fallback may ask for other captures
+                    self._add_captures(scene, self._passes, StageTimer())
                 self._view = self._views.view(self._passes, follow=False)
                 self._show(scene, self._view.step())
                 return True
@@ -174,6 +179,8 @@ class LiveSession:
                 self._absorb_updates = True
         timer = StageTimer()
         passes = self._capture(scene, timer, MOVING_SAMPLES)
+        if self._passes is not None:
+            keep_view_captures(passes, self._passes)
         self._view, self._passes = self._views.view(passes, inputs_timer=timer), passes
         self._updates.append(now)
         self._show(scene, self._view.step(max_iterations=1))
@@ -200,10 +207,18 @@ class LiveSession:
             return
         timer = StageTimer()
         passes = self._capture(scene, timer)
+        self.fallbacks.reconsider()  # a view held elsewhere may need other levels
+        self._add_captures(scene, passes, timer)
         if self._views is None:
             self._views = NavigatedViews(chain_settings(settings), self.pool)
         self._view, self._passes = self._views.view(passes, inputs_timer=timer, follow=False), passes
-        self._show(scene, self._view.step())
+        outputs = self._view.step()
+        if decide_view_cube(scene, passes, outputs, chain_settings(settings), self.fallbacks):
+            self._add_captures(scene, passes, timer)
+            self._view = self._views.view(passes, inputs_timer=timer, follow=False)
+            outputs = self._view.step()
+        self._capture_ms = sum(timer.milliseconds.values())
+        self._show(scene, outputs)
 
     def _stop_following(self):
         """Put back the set-up held while the view moved."""
@@ -226,6 +241,14 @@ class LiveSession:
         self._capture_ms = sum(timer.milliseconds.values())
         self._capture_draws = self.capture.draws - draws
         return passes
+
+    def _add_captures(self, scene, passes, timer):
+        """Give the held view's PASSES the captures past the screen its fallback asks for."""
+        try:
+            add_view_captures(scene, rendered_view_layer(scene), passes, chain_settings(scene.ssr), self.fallbacks,
+                              scene.eevee.taa_samples, timer)
+        finally:
+            self._absorb_updates = True  # hiding the reflector for a planar capture is no edit
 
     def _clip(self, scene):
         """(clip_start, clip_end) of the view: the camera's in camera view, else the 3D View's."""
@@ -276,7 +299,7 @@ class LiveSession:
 
     def release(self):
         self._stop_following()
-        self.capture.release()
+        self.fallbacks.release()
         self.pool.release()
         self.display.release()
         self._views = self._view = self._texture = self._image = self._passes = None
