@@ -38,9 +38,10 @@ def reflective_relative_error(image, reference, passes):
 
 
 def test_the_preview_of_the_camera_view_is_the_render_of_the_frame(tmp_path):
-    # The live view traces the screen alone: the render it matches has no fallback levels.
+    # Both under the default fallback=auto: the preview draws the floor's planar capture where the
+    # render renders it.
     run_cli("render", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "render", "--method", "ssr",
-            "--resolution", RESOLUTION, "--set", "fallback=off")
+            "--resolution", RESOLUTION)
     result = run_cli("preview", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "preview",
                      "--resolution", RESOLUTION)
     assert "first image" in result.stdout
@@ -55,7 +56,8 @@ def test_the_preview_of_the_camera_view_is_the_render_of_the_frame(tmp_path):
     # Where it stops on the same passes: test_convergence; these passes come through the viewport.
     assert timings["converged"] and timings["iterations"] >= 1
     assert timings["time_to_first_image_ms"] <= timings["time_to_last_image_ms"]
-    assert set(timings["capture_ms"]) == {"capture", "upload"} and timings["chain_ms_per_iteration"] > 0
+    assert set(timings["capture_ms"]) == {"capture", "planar_capture", "upload"}
+    assert timings["chain_ms_per_iteration"] > 0
     assert "lamp_split" in timings["chain_stages_ms"]  # the analytic split: the chain's first pass
     assert (tmp_path / "preview" / "first.png").is_file() and (tmp_path / "preview" / "preview.png").is_file()
 
@@ -105,6 +107,8 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
     assert not session.tick(scene, now=clock[0]) and session.texture is None  # waits for the view to hold
     assert session.tick(scene, now=clock[0] + DEBOUNCE_S / 2) is False and session.texture is None
     _tick_until(session, scene, clock, lambda: session.texture is not None)
+    held_capture = session._passes.capture
+    assert held_capture is not None  # fallback=auto: the floor's planar capture, drawn through the view
     seen = [session._view.iterations]
     first_image = session.texture
     _tick_until(session, scene, clock, lambda: seen.append(session._view.iterations) or session._view.done)
@@ -135,6 +139,7 @@ def test_a_still_view_refines_until_it_stops_and_a_change_restarts_it(live_view)
     assert session.tick(scene, now=clock[0] + 2) is True
     assert session.texture is not None and "moving" in session.status, session.status
     assert session._view.iterations == 1 and session._view.state.sequence.has_history  # the last view's, reprojected
+    assert session._passes.capture is held_capture  # traced from the moving view, not drawn again
     assert scene.eevee.taa_samples == samples and session.capture.draws > draws
     assert session.tick(scene, now=clock[0] + 2 + DEBOUNCE_S / 2) is False  # holding: not yet refined
     assert len(scene.view_layers[0].aovs) > aovs  # the capture's set-up is held while the view moves...
