@@ -108,6 +108,9 @@ class ChainInputs:
     capture: object = None       # captures.PlanarCapture (its textures are capture_* resources)
     cube: object = None          # captures.CubeCapture (cube_* resources)
     frame_rect: tuple = None     # RenderPasses.frame_rect; None: the whole frame
+    # The frame's own reflection of the world is a probe's (EEVEE), which a capture's view of the
+    # world betters; a path tracer's (Cycles) is exact, to the pixel's edges.
+    world_from_captures: bool = True
 
     @property
     def size(self):
@@ -134,6 +137,7 @@ class ChainInputs:
                      clip_start=passes.clip_start, clip_end=passes.clip_end,
                      ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings),
                      lamps=None if passes.lamps is None else passes.lamps.lamps, capture=passes.capture,
-                     cube=passes.cube, frame_rect=passes.frame_rect)
+                     cube=passes.cube, frame_rect=passes.frame_rect,
+                     world_from_captures=passes.engine == "eevee")
         lap(timer, "upload")
         return inputs

@@ -18,7 +18,8 @@
  *          roughness_tx, history_record_tx (the frame), capture_depth_tx, capture_normal_tx,
  *          capture_color_tx (the capture: view depth, world normal, colour pyramid atlas).
  * Outputs: planar_hit_img = (radiance of the hit, share of the ray it resolves: 0 for a ray
- *                            it did not take, the capture's edge fade for one it hit),
+ *                            it did not take, the capture's edge fade for one it hit, 1 for
+ *                            one that escapes over the world the capture shows),
  *          ray_outcome_img = (hit distance, 0, 0, RAY_OUTCOME_*: PLANAR where it hit, the
  *                            screen trace's outcome elsewhere). */
 
@@ -80,6 +81,24 @@ vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float so
   return mix(sharp, atlas_sample(capture_color_tx, params.capture_color_level[upper], hit_uv).rgb, level);
 }
 
+/* The capture's pixel where it shows the world in DIRECTION (its view space): the world is
+ * infinitely far, so that is the direction's vanishing point. vec2(-1) where the capture does
+ * not look that way or shows a surface there. */
+vec2 world_shown_at(vec3 direction)
+{
+  vec4 clip = params.capture_view_to_clip * vec4(direction, 0.0);
+  if (!(clip.w > 0.0)) {
+    return vec2(-1.0);
+  }
+  vec2 px = (clip.xy / clip.w * 0.5 + 0.5) * params.capture_size;
+  if (any(lessThan(px, vec2(0.0))) || any(greaterThanEqual(px, params.capture_size)) ||
+      !is_background(texelFetch(capture_depth_tx, ivec2(px), 0).r))
+  {
+    return vec2(-1.0);
+  }
+  return px;
+}
+
 void main()
 {
   ivec2 texel = ivec2(gl_FragCoord.xy);
@@ -111,7 +130,28 @@ void main()
   float steps;
   float t = march_linear(ray, steps);
   if (t < 0.0) {
-    return; /* the capture shows nothing there either: the screen's outcome stands */
+    /* Nothing the capture shows lies on the ray. Where it stays in the capture's view and runs
+     * on over the world, it escapes, and the world stands in its direction as the capture
+     * shows it: nearer to a path trace's world than EEVEE's probe (mirror_floor's sky came out
+     * 1-5 % dark through it, by channel). Where the screen hit something, that stands; and a
+     * path tracer's own reflection of the world (params.world_from_captures 0) is exact. */
+    bool screen_hit_it = screen_stats.w == float(RAY_OUTCOME_SCREEN) ||
+                         screen_stats.w == float(RAY_OUTCOME_GUARD_BAND);
+    vec2 world_px = world_shown_at(capture_direction);
+    if (params.world_from_captures == 0 || screen_hit_it || world_px.x < 0.0 ||
+        miss_outcome(ray, 1.0) != RAY_OUTCOME_ESCAPED)
+    {
+      return; /* the screen's outcome stands */
+    }
+    float world_solid_angle = ray_solid_angle(
+        hit.z, float(params.resolve_samples) * accumulated_iterations(pixel),
+        dot(view_normal(world_normal), -view_incident(uv)), ggx_alpha(texelFetch(roughness_tx, pixel, 0).r));
+    /* At any distance along the ray the cone covers as many texels as at one unit, where the
+     * point lies as deep as the direction's cosine to the view axis. */
+    float cosine = -normalize(capture_direction).z;
+    planar_hit_img = vec4(capture_radiance(world_px / params.capture_size, cosine, 1.0, world_solid_angle), 1.0);
+    ray_outcome_img = vec4(params.max_distance, 0.0, 0.0, float(RAY_OUTCOME_PLANAR));
+    return;
   }
   vec2 hit_px = ray_position_px(ray, t);
   ivec2 hit_texel = screen_texel_at(hit_px);
