@@ -8,6 +8,12 @@ import numpy as np
 # The GGX alpha floor: a mirror is a lobe this narrow (a narrower one's peak no longer fits a
 # float32 D and its edges no longer resolve in a half-vector's cosine).
 MIN_ALPHA = 1e-3
+# The floor of the lobe the lamp split integrates lamps against (lamp_split.glsl). A lobe's tail
+# grows as alpha squared, and a lamp is bright: at MIN_ALPHA a mirror's tail reads 0.002-0.005
+# of a sun's light 16 degrees from its highlight (mirror_floor), which neither EEVEE nor Cycles
+# shows (both take roughness 0 for a perfect mirror). Its samples are drawn from the lobe itself,
+# so value and pdf agree where a half-vector's cosine rounds to 1.
+LAMP_MIN_ALPHA = 1e-4
 
 
 def ggx_alpha(roughness):

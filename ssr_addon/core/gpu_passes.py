@@ -17,7 +17,7 @@ import numpy as np
 
 from .captures import PLANE_NORMAL_COS, PLANE_TOLERANCE_PX
 from .frame_sequence import MAX_ITERATIONS
-from .ggx import MIN_ALPHA
+from .ggx import LAMP_MIN_ALPHA, MIN_ALPHA
 from .gpu_backend import FullscreenPass, empty_texture
 from .uniforms import glsl_struct, lamp_block_glsl
 
@@ -179,8 +179,8 @@ LAMP_SPLIT = GPUPass(
     "lamp_split", "lamp_split.glsl", stage="lamp_split",
     samplers=("depth_tx", "normal_tx", "roughness_tx", "dfg_tx", "specular_light_tx", "shadow_tx"),
     outputs=(Output("specular_direct_img"), Output("specular_indirect_img")),
-    libraries=("view_lib.glsl", "ggx_lib.glsl", "dfg_lib.glsl"), uniform_block="lamp_block",
-    runs=lambda frame: frame.inputs.lamps is not None)
+    libraries=("view_lib.glsl", "ggx_lib.glsl", "dfg_lib.glsl"), defines=(("LAMP_MIN_ALPHA", repr(LAMP_MIN_ALPHA)),),
+    uniform_block="lamp_block", runs=lambda frame: frame.inputs.lamps is not None)
 HIZ_DOWNSAMPLE = GPUPass("hiz_downsample", "pyramid_downsample.glsl", stage="hiz", samplers=("source_tx",),
                          outputs=(Output("level_img", channels=1),), libraries=(), defines=(("REDUCE_MIN", ""),),
                          push_constants=_PYRAMID_LEVEL, uniform_block=None)

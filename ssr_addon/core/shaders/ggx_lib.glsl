@@ -16,7 +16,9 @@ float ggx_alpha(float roughness)
 float ggx_d(float n_dot_h, float alpha)
 {
   float a2 = alpha * alpha;
-  float denominator = n_dot_h * n_dot_h * (a2 - 1.0) + 1.0;
+  /* cos^2 (a2 - 1) + 1, written so that an a2 below float precision keeps the peak finite. */
+  float cos2 = n_dot_h * n_dot_h;
+  float denominator = max(1.0 - cos2, 0.0) + cos2 * a2;
   return a2 / (M_PI * denominator * denominator);
 }
 

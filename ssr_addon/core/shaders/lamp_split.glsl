@@ -166,7 +166,9 @@ vec3 lamp_light(ivec2 texel, float depth)
   vec3 position = world_position(uv, depth, v);
   vec3 n = normalize(texelFetch(normal_tx, texel, 0).xyz);
   float roughness = clamp(texelFetch(roughness_tx, texel, 0).r, 0.0, 1.0);
-  float alpha = ggx_alpha(roughness);
+  /* The lobe's own width down to LAMP_MIN_ALPHA (core.ggx): at the rays' floor a mirror's tail
+   * would light it where no engine does. */
+  float alpha = max(roughness * roughness, LAMP_MIN_ALPHA);
   mat3 frame = tangent_frame(n);
   float n_dot_v = clamp(dot(n, v), 1e-4, 1.0);
   vec2 scale_bias = dfg_lookup(n_dot_v, roughness);
