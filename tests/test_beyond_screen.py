@@ -58,6 +58,51 @@ def test_rendered_planar_capture_mirrors_the_hidden_underside(render_scene):
     assert plain[judged].mean() < 0.2, "screen space alone should not see the underside"
 
 
+def open_sky_floor_pixels(builder, width, height):
+    """((H, W) floor pixels of BUILDER's scene whose mirror ray meets nothing (Blender's ray casts
+    from where the camera ray meets the floor z = 0), two pixels clear of any that does: where a
+    mirror floor shows the world alone; and the world's constant radiance)."""
+    import bpy
+    from mathutils import Vector
+    from ssr_addon.blender.scene_io import camera_matrices, load_scene
+    scene = load_scene(os.path.join(SCENES, f"{builder}.py"))
+    view, projection = (np.asarray(matrix, np.float64) for matrix in camera_matrices(scene, width, height))
+    camera = np.linalg.inv(view)[:3, 3]
+    clip_to_world = np.linalg.inv(projection @ view)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    open_sky, sees_object = np.zeros((height, width), bool), np.zeros((height, width), bool)
+    for row in range(height):
+        for column in range(width):
+            far = clip_to_world @ ((column + 0.5) / width * 2 - 1, 1 - (row + 0.5) / height * 2, 1.0, 1.0)
+            incident = far[:3] / far[3] - camera
+            hit, location, normal, *_ = scene.ray_cast(depsgraph, Vector(camera), Vector(incident))
+            if not hit or normal.z < 0.99 or abs(location.z) > 1e-4:
+                sees_object[row, column] = hit
+                continue
+            mirrored = Vector((incident[0], incident[1], -incident[2]))
+            hit, *_ = scene.ray_cast(depsgraph, location + Vector((0, 0, 1e-4)), mirrored)
+            open_sky[row, column], sees_object[row, column] = not hit, hit
+    near_object = np.zeros_like(sees_object)
+    for dy in range(-MARGIN_PX, MARGIN_PX + 1):
+        for dx in range(-MARGIN_PX, MARGIN_PX + 1):
+            near_object |= np.roll(sees_object, (dy, dx), axis=(0, 1))
+    background = scene.world.node_tree.nodes["Background"].inputs
+    return open_sky & ~near_object, np.array(background["Color"].default_value[:3]) * background["Strength"].default_value
+
+
+def test_a_mirror_floor_shows_the_world_as_it_is(render_scene):
+    """Where a mirror floor's rays meet nothing, it shows the world: its constant colour times the
+    floor's specular colour (the Glossy Color pass), to 1 % per channel. Screen space leaves those
+    rays to EEVEE's world probe, 1-5 % dark by channel here; the planar capture shows the world
+    itself where the rays run on over it."""
+    judged, world = open_sky_floor_pixels("mirror_floor", 160, 90)
+    assert judged.sum() > 2000
+    out = render_scene("mirror_floor", "ssr", "--resolution", "160x90")
+    specular = np.stack([out.passes()[f"Specular Color.{c}"] for c in "RGB"], -1)
+    error = np.abs(out.final() / (specular * world) - 1.0)[judged]
+    assert np.percentile(error, 95, axis=0).max() < 0.01, np.percentile(error, 95, axis=0)
+
+
 def glowing_green(image):
     """(H, W) where IMAGE shows the underside's green glow."""
     return (image[..., 1] > 0.5) & (image[..., 1] > 2.5 * np.maximum(image[..., 0], image[..., 2]))

@@ -17,7 +17,8 @@
  *          history_record_tx (the frame), cube_depth_tx, cube_color_tx (the faces in a 3 x 2
  *          atlas: axis distance, colour pyramid).
  * Outputs: capture_hit_img = (radiance, share of the ray the captures resolve), the planar
- *                            capture's with what is left of the ray added,
+ *                            capture's with what is left of the ray added (a surface's, or
+ *                            the world's where the ray escapes past everything it shows),
  *          ray_outcome_img = (hit distance, 0, 0, RAY_OUTCOME_CUBE where the cube resolved most
  *                            of the ray, the outcome before elsewhere). */
 
@@ -47,12 +48,15 @@ float cube_behind(vec3 point, out vec2 atlas_px)
   return axis_distance - texelFetch(cube_depth_tx, ivec2(atlas_px), 0).r;
 }
 
-/* The t of the first surface the ray ORIGIN + t DIRECTION meets in the cube, or -1. */
-float march_cube(vec3 origin, vec3 direction, float first_step, out vec2 hit_px)
+/* The t of the first surface the ray ORIGIN + t DIRECTION meets in the cube, or -1; ESCAPES
+ * where it meets none and ends in view of the centre past everything the cube shows. */
+float march_cube(vec3 origin, vec3 direction, float first_step, out vec2 hit_px, out bool escapes)
 {
   hit_px = vec2(0.0);
+  escapes = false;
   /* Nothing the cube shows lies farther than cube_reach from its centre. */
-  float t_max = min(params.max_distance, distance(origin, params.cube_centre.xyz) + params.cube_reach);
+  float reach = distance(origin, params.cube_centre.xyz) + params.cube_reach;
+  float t_max = min(params.max_distance, reach);
   int steps = params.cube_steps;
   float t_front = 0.0;
   vec2 atlas_px;
@@ -95,7 +99,20 @@ float march_cube(vec3 origin, vec3 direction, float first_step, out vec2 hit_px)
     }
     in_front = false; /* behind a silhouette seen from the centre: go on until the ray reappears */
   }
+  escapes = in_front && t_max == reach;
   return -1.0;
+}
+
+/* The atlas pixel where the cube shows the world in DIRECTION (world space), or vec2(-1) where
+ * it shows a surface there. */
+vec2 world_shown_at(vec3 direction)
+{
+  int face = cube_face(direction);
+  vec3 view = mat3(params.cube_world_to_face[face]) * direction;
+  float side = params.cube_centre.w;
+  vec2 uv = clamp(view.xy / -view.z * 0.5 + 0.5, vec2(0.5 / side), vec2(1.0 - 0.5 / side));
+  vec2 atlas_px = (vec2(face % 3, face / 3) + uv) * side;
+  return is_background(texelFetch(cube_depth_tx, ivec2(atlas_px), 0).r) ? atlas_px : vec2(-1.0);
 }
 
 void main()
@@ -118,12 +135,21 @@ void main()
   vec3 view_ray = texelFetch(ray_dir_tx, texel, 0).xyz;
   vec3 direction = mat3(params.view_to_world) * view_ray;
   vec2 hit_px;
-  float t = march_cube(origin, direction, CUBE_FIRST_STEP_PX * pixel_footprint(depth), hit_px);
-  if (t < 0.0) {
+  bool escapes;
+  float t = march_cube(origin, direction, CUBE_FIRST_STEP_PX * pixel_footprint(depth), hit_px, escapes);
+  /* A ray past everything the cube shows that runs on over the world there reads the world in
+   * its direction, nearer to a path trace's than EEVEE's probe (planar_trace.glsl says more). */
+  bool world = t < 0.0 && escapes && params.world_from_captures != 0;
+  if (world) {
+    hit_px = world_shown_at(direction);
+    world = hit_px.x >= 0.0;
+  }
+  if (t < 0.0 && !world) {
     return;
   }
-  vec3 hit_position = origin + direction * t;
-  float centre_distance = distance(hit_position, params.cube_centre.xyz);
+  /* The world lies infinitely far: its cone covers as many texels as at one unit from the centre. */
+  float hit_distance = world ? 1.0 : t;
+  float centre_distance = world ? 1.0 : distance(origin + direction * t, params.cube_centre.xyz);
   vec3 world_normal = texelFetch(normal_tx, pixel, 0).xyz;
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
   float rays_averaged = float(params.resolve_samples) * accumulated_iterations(pixel);
@@ -131,7 +157,8 @@ void main()
                                       ggx_alpha(roughness));
   float level = 0.0;
   if (params.use_cone_filter != 0 && params.use_importance_sampling != 0) {
-    level = cone_level(t, solid_angle, 2.0 * centre_distance / params.cube_centre.w, params.cube_color_levels);
+    level = cone_level(hit_distance, solid_angle, 2.0 * centre_distance / params.cube_centre.w,
+                       params.cube_color_levels);
   }
   int lower = int(floor(level));
   int upper = min(lower + 1, params.cube_color_levels - 1);
@@ -141,6 +168,6 @@ void main()
   float share = captured.a + rest;
   capture_hit_img = vec4((captured.rgb * captured.a + radiance * rest) / share, share);
   if (rest >= 0.5) {
-    ray_outcome_img = vec4(t, 0.0, 0.0, float(RAY_OUTCOME_CUBE));
+    ray_outcome_img = vec4(world ? params.max_distance : t, 0.0, 0.0, float(RAY_OUTCOME_CUBE));
   }
 }
