@@ -58,10 +58,11 @@ def test_rendered_planar_capture_mirrors_the_hidden_underside(render_scene):
     assert plain[judged].mean() < 0.2, "screen space alone should not see the underside"
 
 
-def open_sky_floor_pixels(builder, width, height):
-    """((H, W) floor pixels of BUILDER's scene whose mirror ray meets nothing (Blender's ray casts
-    from where the camera ray meets the floor z = 0), two pixels clear of any that does: where a
-    mirror floor shows the world alone; and the world's constant radiance)."""
+def floor_mirror_rays(builder, width, height):
+    """((H, W) floor pixels of BUILDER's scene whose mirror ray meets nothing, those whose mirror
+    ray meets an object (Blender's ray casts from where the camera ray meets the floor z = 0),
+    each two pixels clear of the other and of anything but the floor; (H, W, 2) the screen uv
+    (y up) where the camera sees each object hit, NaN elsewhere; the world's constant radiance)."""
     import bpy
     from mathutils import Vector
     from ssr_addon.blender.scene_io import camera_matrices, load_scene
@@ -70,24 +71,30 @@ def open_sky_floor_pixels(builder, width, height):
     camera = np.linalg.inv(view)[:3, 3]
     clip_to_world = np.linalg.inv(projection @ view)
     depsgraph = bpy.context.evaluated_depsgraph_get()
-    open_sky, sees_object = np.zeros((height, width), bool), np.zeros((height, width), bool)
+    kind = np.zeros((height, width), np.int8)  # 0: not the floor, 1: open sky, 2: an object
+    hit_uv = np.full((height, width, 2), np.nan)
     for row in range(height):
         for column in range(width):
             far = clip_to_world @ ((column + 0.5) / width * 2 - 1, 1 - (row + 0.5) / height * 2, 1.0, 1.0)
             incident = far[:3] / far[3] - camera
             hit, location, normal, *_ = scene.ray_cast(depsgraph, Vector(camera), Vector(incident))
-            if not hit or normal.z < 0.99 or abs(location.z) > 1e-4:
-                sees_object[row, column] = hit
-                continue
-            mirrored = Vector((incident[0], incident[1], -incident[2]))
-            hit, *_ = scene.ray_cast(depsgraph, location + Vector((0, 0, 1e-4)), mirrored)
-            open_sky[row, column], sees_object[row, column] = not hit, hit
-    near_object = np.zeros_like(sees_object)
-    for dy in range(-MARGIN_PX, MARGIN_PX + 1):
-        for dx in range(-MARGIN_PX, MARGIN_PX + 1):
-            near_object |= np.roll(sees_object, (dy, dx), axis=(0, 1))
+            if hit and normal.z > 0.99 and abs(location.z) < 1e-4:
+                mirrored = Vector((incident[0], incident[1], -incident[2]))
+                found, hit_location, *_ = scene.ray_cast(depsgraph, location + Vector((0, 0, 1e-4)), mirrored)
+                kind[row, column] = 2 if found else 1
+                if found:
+                    clip = projection @ view @ (*hit_location, 1.0)
+                    hit_uv[row, column] = clip[:2] / clip[3] * 0.5 + 0.5
+
+    def clear_of_others(value):
+        clear = kind == value
+        for dy in range(-MARGIN_PX, MARGIN_PX + 1):
+            for dx in range(-MARGIN_PX, MARGIN_PX + 1):
+                clear &= np.roll(kind, (dy, dx), axis=(0, 1)) == value
+        return clear
     background = scene.world.node_tree.nodes["Background"].inputs
-    return open_sky & ~near_object, np.array(background["Color"].default_value[:3]) * background["Strength"].default_value
+    return (clear_of_others(1), clear_of_others(2), hit_uv,
+            np.array(background["Color"].default_value[:3]) * background["Strength"].default_value)
 
 
 def test_a_mirror_floor_shows_the_world_as_it_is(render_scene):
@@ -95,12 +102,26 @@ def test_a_mirror_floor_shows_the_world_as_it_is(render_scene):
     floor's specular colour (the Glossy Color pass), to 1 % per channel. Screen space leaves those
     rays to EEVEE's world probe, 1-5 % dark by channel here; the planar capture shows the world
     itself where the rays run on over it."""
-    judged, world = open_sky_floor_pixels("mirror_floor", 160, 90)
+    judged, _, _, world = floor_mirror_rays("mirror_floor", 160, 90)
     assert judged.sum() > 2000
     out = render_scene("mirror_floor", "ssr", "--resolution", "160x90")
     specular = np.stack([out.passes()[f"Specular Color.{c}"] for c in "RGB"], -1)
     error = np.abs(out.final() / (specular * world) - 1.0)[judged]
     assert np.percentile(error, 95, axis=0).max() < 0.01, np.percentile(error, 95, axis=0)
+
+
+def test_a_floor_reflection_at_the_screen_edge_is_whole(render_scene):
+    """Near the frame's bottom, rolling_ball's floor reflects the backdrop high up the frame, where
+    the screen's hits fade out towards its top edge (Border Fade). The planar capture sees the same
+    surface clear of that edge and resolves the share the fade leaves, so there the reflection is
+    whole (confidence 1), not blended with EEVEE's probe."""
+    from ssr_addon.core.settings import ChainSettings
+    _, meets_object, hit_uv, _ = floor_mirror_rays("rolling_ball", 160, 90)
+    judged = meets_object & (hit_uv[..., 1] > 1.0 - ChainSettings().border_fade) & (hit_uv[..., 1] < 1.0)
+    assert judged.sum() > 300
+    confidence = render_scene("rolling_ball", "ssr", "--resolution", "160x90").passes()["SSR Confidence.V"]
+    shown = confidence[judged]
+    assert shown.mean() >= 0.99 and np.percentile(shown, 1) >= 0.9, np.percentile(shown, [1, 5, 50])
 
 
 def glowing_green(image):

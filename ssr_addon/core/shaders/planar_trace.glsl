@@ -162,7 +162,8 @@ void main()
   }
   vec3 hit_position = ray_view_position(ray, t);
   float hit_distance = distance(capture_origin, hit_position);
-  if (screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal)) {
+  bool same_surface = screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal);
+  if (same_surface && hit.w >= 1.0) {
     return;
   }
   float roughness = texelFetch(roughness_tx, pixel, 0).r;
@@ -171,6 +172,16 @@ void main()
                                       ggx_alpha(roughness));
   vec2 hit_uv = hit_px / params.capture_size;
   vec3 radiance = capture_radiance(hit_uv, -hit_position.z, hit_distance, solid_angle);
-  planar_hit_img = vec4(radiance, border_fade(hit_uv, ray.delta_px));
+  /* A mirror's ray runs along the capture camera's own ray through its hit: moving less than a
+   * pixel on the capture, it cannot leave it, and the edge fade (for rays that run on past their
+   * hit) would only leave the frame's edge rows to the probe. */
+  float fade = length(ray.delta_px) >= 1.0 ? border_fade(hit_uv, ray.delta_px) : 1.0;
+  if (same_surface) {
+    /* The screen's hit stands as far as it is not faded (near the screen's edge, or towards the
+     * camera); the capture, which sees the same surface clear of both, takes the rest. */
+    planar_hit_img = vec4(radiance, min(1.0 - hit.w, fade));
+    return;
+  }
+  planar_hit_img = vec4(radiance, fade);
   ray_outcome_img = vec4(hit_distance, 0.0, 0.0, float(RAY_OUTCOME_PLANAR));
 }
