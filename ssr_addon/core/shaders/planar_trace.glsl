@@ -127,13 +127,17 @@ void main()
   vec3 capture_origin = (params.capture_world_to_view * vec4(origin, 1.0)).xyz;
   vec3 capture_direction = mat3(params.capture_world_to_view) * direction;
   ScreenRay ray = project_ray(capture_origin, capture_direction);
+  float roughness = texelFetch(roughness_tx, pixel, 0).r;
+  float rays_averaged = float(params.resolve_samples) * accumulated_iterations(pixel);
+  float solid_angle = ray_solid_angle(hit.z, rays_averaged, dot(view_normal(world_normal), -view_incident(uv)),
+                                      ggx_alpha(roughness));
   float steps;
   float t = march_linear(ray, steps);
   if (t < 0.0) {
     /* Nothing the capture shows lies on the ray. Where it stays in the capture's view and runs
      * on over the world, it escapes, and the world stands in its direction as the capture
      * shows it: nearer to a path trace's world than EEVEE's probe (mirror_floor's sky came out
-     * 1-5 % dark through it, by channel). Where the screen hit something, that stands; and a
+     * 1.5-4.6 % dark through it, by channel). Where the screen hit something, that stands; and a
      * path tracer's own reflection of the world (params.world_from_captures 0) is exact. */
     bool screen_hit_it = screen_stats.w == float(RAY_OUTCOME_SCREEN) ||
                          screen_stats.w == float(RAY_OUTCOME_GUARD_BAND);
@@ -143,13 +147,10 @@ void main()
     {
       return; /* the screen's outcome stands */
     }
-    float world_solid_angle = ray_solid_angle(
-        hit.z, float(params.resolve_samples) * accumulated_iterations(pixel),
-        dot(view_normal(world_normal), -view_incident(uv)), ggx_alpha(texelFetch(roughness_tx, pixel, 0).r));
     /* At any distance along the ray the cone covers as many texels as at one unit, where the
      * point lies as deep as the direction's cosine to the view axis. */
     float cosine = -normalize(capture_direction).z;
-    planar_hit_img = vec4(capture_radiance(world_px / params.capture_size, cosine, 1.0, world_solid_angle), 1.0);
+    planar_hit_img = vec4(capture_radiance(world_px / params.capture_size, cosine, 1.0, solid_angle), 1.0);
     ray_outcome_img = vec4(params.max_distance, 0.0, 0.0, float(RAY_OUTCOME_PLANAR));
     return;
   }
@@ -166,10 +167,6 @@ void main()
   if (same_surface && hit.w >= 1.0) {
     return;
   }
-  float roughness = texelFetch(roughness_tx, pixel, 0).r;
-  float rays_averaged = float(params.resolve_samples) * accumulated_iterations(pixel);
-  float solid_angle = ray_solid_angle(hit.z, rays_averaged, dot(view_normal(world_normal), -view_incident(uv)),
-                                      ggx_alpha(roughness));
   vec2 hit_uv = hit_px / params.capture_size;
   vec3 radiance = capture_radiance(hit_uv, -hit_position.z, hit_distance, solid_angle);
   /* A mirror's ray runs along the capture camera's own ray through its hit: moving less than a
