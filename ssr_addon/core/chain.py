@@ -149,7 +149,7 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         **_cube_params(inputs.cube, frame.cube_color_rects, settings),
         "capture_levels": (CAPTURE_LEVELS["planar"] if inputs.capture is not None else 0)
                           | (CAPTURE_LEVELS["cube"] if inputs.cube is not None else 0),
-        "captures_changed": frame.captures_changed, "world_from_captures": inputs.world_from_captures,
+        "captures_changed": frame.captures_changed, "probe_reflection": inputs.probe_reflection,
     })
 
 

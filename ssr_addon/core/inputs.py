@@ -108,9 +108,10 @@ class ChainInputs:
     capture: object = None       # captures.PlanarCapture (its textures are capture_* resources)
     cube: object = None          # captures.CubeCapture (cube_* resources)
     frame_rect: tuple = None     # RenderPasses.frame_rect; None: the whole frame
-    # The frame's own reflection of the world is a probe's (EEVEE), which a capture's view of the
-    # world betters; a path tracer's (Cycles) is exact, to the pixel's edges.
-    world_from_captures: bool = True
+    # The frame's own reflection, which stands wherever SSR resolves nothing, is a probe's (EEVEE):
+    # a capture's view of the world and of what the screen's fades leave betters it. A path
+    # tracer's (Cycles) is exact, to the pixel's edges.
+    probe_reflection: bool = True
 
     @property
     def size(self):
@@ -138,6 +139,6 @@ class ChainInputs:
                      ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings),
                      lamps=None if passes.lamps is None else passes.lamps.lamps, capture=passes.capture,
                      cube=passes.cube, frame_rect=passes.frame_rect,
-                     world_from_captures=passes.engine == "eevee")
+                     probe_reflection=passes.engine == "eevee")
         lap(timer, "upload")
         return inputs

@@ -71,8 +71,8 @@ PARAMS_FIELDS = (
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
     ("int", "capture_levels", "CAPTURE_LEVEL_* bits of the captures that ran (resolve reads capture_hit_tx)"),
     ("int", "captures_changed", "the captures are not the last frame's: what they show moved"),
-    ("int", "world_from_captures", "rays that escape read the world where a capture shows it: the frame's own "
-                                   "reflection of it is a probe's (EEVEE), not a path tracer's"),
+    ("int", "probe_reflection", "the frame's own reflection is a probe's (EEVEE), not a path tracer's: captures "
+                                "take the world where rays escape and the shares the screen's fades leave"),
     ("mat4", "capture_world_to_view", "the planar capture's camera: the frame's mirrored in its plane"),
     ("mat4", "capture_view_to_clip", "its projection"),
     ("vec4", "capture_plane", "the reflector's plane in world space, n.x + d, n towards what it reflects"),

@@ -139,7 +139,7 @@ void main()
   float t = march_cube(origin, direction, CUBE_FIRST_STEP_PX * pixel_footprint(depth), hit_px, escapes);
   /* A ray past everything the cube shows that runs on over the world there reads the world in
    * its direction, nearer to a path trace's than EEVEE's probe (planar_trace.glsl says more). */
-  bool world = t < 0.0 && escapes && params.world_from_captures != 0;
+  bool world = t < 0.0 && escapes && params.probe_reflection != 0;
   if (world) {
     hit_px = world_shown_at(direction);
     world = hit_px.x >= 0.0;

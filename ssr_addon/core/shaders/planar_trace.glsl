@@ -138,11 +138,11 @@ void main()
      * on over the world, it escapes, and the world stands in its direction as the capture
      * shows it: nearer to a path trace's world than EEVEE's probe (mirror_floor's sky came out
      * 1.5-4.6 % dark through it, by channel). Where the screen hit something, that stands; and a
-     * path tracer's own reflection of the world (params.world_from_captures 0) is exact. */
+     * path tracer's own reflection of the world (params.probe_reflection 0) is exact. */
     bool screen_hit_it = screen_stats.w == float(RAY_OUTCOME_SCREEN) ||
                          screen_stats.w == float(RAY_OUTCOME_GUARD_BAND);
     vec2 world_px = world_shown_at(capture_direction);
-    if (params.world_from_captures == 0 || screen_hit_it || world_px.x < 0.0 ||
+    if (params.probe_reflection == 0 || screen_hit_it || world_px.x < 0.0 ||
         miss_outcome(ray, 1.0) != RAY_OUTCOME_ESCAPED)
     {
       return; /* the screen's outcome stands */
@@ -164,7 +164,7 @@ void main()
   vec3 hit_position = ray_view_position(ray, t);
   float hit_distance = distance(capture_origin, hit_position);
   bool same_surface = screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal);
-  if (same_surface && hit.w >= 1.0) {
+  if (same_surface && (hit.w >= 1.0 || params.probe_reflection == 0)) {
     return;
   }
   vec2 hit_uv = hit_px / params.capture_size;
@@ -175,7 +175,8 @@ void main()
   float fade = length(ray.delta_px) >= 1.0 ? border_fade(hit_uv, ray.delta_px) : 1.0;
   if (same_surface) {
     /* The screen's hit stands as far as it is not faded (near the screen's edge, or towards the
-     * camera); the capture, which sees the same surface clear of both, takes the rest. */
+     * camera); the capture, which sees the same surface clear of both, takes the rest from the
+     * probe (a path tracer's own reflection, exact, keeps it). */
     planar_hit_img = vec4(radiance, min(1.0 - hit.w, fade));
     return;
   }
