@@ -30,7 +30,7 @@ from ssr_addon.blender.render_setup import rendered_view_layer
 from ssr_addon.blender.scene_io import camera_matrices, load_scene
 from ssr_addon.blender.viewport_capture import ViewportCapture, headless_view3d
 from ssr_addon.core.gpu_backend import StageTimer, TexturePool, describe_gpu, download, upload
-from ssr_addon.core.progressive import STEP_SECONDS, ProgressiveView
+from ssr_addon.core.progressive import STEP_SECONDS, ProgressiveView, moving_view_settings
 from ssr_addon.core.settings import ChainSettings
 from ssr_addon.ui.live import draw_image
 from .bench.scenes import REPO, resolve_scene
@@ -180,7 +180,8 @@ def reflective_mask(passes):
 def orbit_quality(scene, folder, settings, resolution, views):
     """Preview SCENE's camera view, then orbit it VIEWS views (preview --orbit); per orbit view, the
     error on the reflective pixels (relative L1) against a converged still of that view, of the
-    moving view, of one iteration of its own one-sample passes without history and of EEVEE's image
+    moving view, of one iteration of its own one-sample passes without history (traced as a moving
+    view is: progressive.moving_view_settings) and of EEVEE's image
     without SSR; and the orbit's
     flicker: the mean change, from one view to the next, of the moving view's difference from the
     converged still, relative to the reflective pixels' brightness (what changes that the stills
@@ -189,7 +190,8 @@ def orbit_quality(scene, folder, settings, resolution, views):
 
     def measure(index, passes, outputs, recapture):
         moving = download(outputs["final"])[..., :3]
-        alone = download(ProgressiveView(passes, settings).step(max_iterations=1)["final"])[..., :3]
+        alone = ProgressiveView(passes, moving_view_settings(settings)).step(max_iterations=1)
+        alone = download(alone["final"])[..., :3]
         still_passes = recapture()
         still = ProgressiveView(still_passes, settings)
         while not still.done:

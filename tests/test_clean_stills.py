@@ -143,8 +143,8 @@ def test_a_rippled_mirror_keeps_its_sharp_image_at_half_resolution(gpu_backend):
     """Half-resolution tracing gives a pixel its own ray one iteration in four; in the others its
     neighbours' rays, reflected about normals turned a degree or more from its own, miss its
     narrow lobe, and the still shows their reflections: off by half of what a one-pixel shift
-    of the image costs. With use_sharp_rays a mirror pixel traces a ray of its own every
-    iteration and keeps the image sharp: within a third of a one-pixel shift of the exact image."""
+    of the image costs. A mirror pixel traces a ray of its own every iteration (use_sharp_rays, the
+    default) and keeps the image sharp: within a third of a one-pixel shift of the exact image."""
     width, height = 320, 180
     projection, depth, normal, radiance, floor, expected = rippled_mirror(width, height)
     roughness = np.where(floor, 0.02, 1.0).astype(np.float32)
@@ -162,9 +162,9 @@ def test_a_rippled_mirror_keeps_its_sharp_image_at_half_resolution(gpu_backend):
         one_pixel_shift = np.nanmean(np.abs(np.roll(expected, 1, axis=1) - expected).mean(-1)[judged])
         return np.abs(shown - expected).mean(-1)[judged].mean(), one_pixel_shift
 
-    error, one_pixel_shift = image_error(preset("balanced").with_overrides(["use_sharp_rays=true"]))
+    error, one_pixel_shift = image_error(preset("balanced"))
     assert error <= one_pixel_shift / 3, (
         f"the rippled mirror's image is off by {error:.4f}, {error / one_pixel_shift:.2f} of a one-pixel shift "
         f"({one_pixel_shift:.4f}): blurred")
-    reused, _ = image_error(preset("balanced"))
+    reused, _ = image_error(preset("balanced").with_overrides(["use_sharp_rays=false"]))
     assert reused > 1.5 * error, "without its own rays the mirror should show its neighbours' reflections"

@@ -106,11 +106,14 @@ def test_noise_halves_when_accumulated_frames_quadruple(spheres):
 
 def test_reuse_and_temporal_filter_beat_the_same_rays_without_them(spheres):
     """Four frames of one half-resolution ray per pixel each, static camera (noise_threshold off:
-    the same rays, not as many as convergence takes)."""
-    plain = chain_error(spheres, ChainSettings(resolve_samples=1, use_temporal=False), frames=4)
-    reuse = chain_error(spheres, ChainSettings(resolve_samples=4, use_temporal=False), frames=4)
+    the same rays, not as many as convergence takes; no sharp rays: every pixel reuses)."""
+    only_half_resolution_rays = dict(use_sharp_rays=False)
+    plain = chain_error(spheres, ChainSettings(resolve_samples=1, use_temporal=False, **only_half_resolution_rays),
+                        frames=4)
+    reuse = chain_error(spheres, ChainSettings(resolve_samples=4, use_temporal=False, **only_half_resolution_rays),
+                        frames=4)
     both = chain_error(spheres, ChainSettings(resolve_samples=4, use_temporal=True, accumulate_iterations=1,
-                                              noise_threshold=0.0), frames=4)
+                                              noise_threshold=0.0, **only_half_resolution_rays), frames=4)
     print(f"RMSE: no reuse/no temporal {plain:.4f}, reuse {reuse:.4f}, reuse + temporal {both:.4f}")
     assert reuse < plain
     assert both < reuse

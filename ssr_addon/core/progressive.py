@@ -96,10 +96,20 @@ def camera_motion(depth, view_matrix, projection_matrix, previous_world_to_clip)
     return np.nan_to_num(motion, nan=1e6).astype(np.float32), share
 
 
+def moving_view_settings(settings):
+    """SETTINGS as a view on the move traces them: without sharp rays (use_sharp_rays). With them a
+    mirror's one fresh ray is about as near a converged still as its reprojected history, so the
+    history could no longer help there; without them the history carries the mirror's image (an
+    orbit's moving views come nearer the stills than one iteration with them and no history), and
+    each update traces a pass less."""
+    return replace(settings, use_sharp_rays=False)
+
+
 class NavigatedViews:
     """The views of a camera on the move over a still scene, each from a capture of its own,
     refined from the last one's history as an animation's frames are: the history is reprojected
-    through the camera's motion (camera_motion) and each view's first image costs one iteration.
+    through the camera's motion (camera_motion), each view's first image costs one iteration, and a
+    following view traces moving_view_settings.
     The history is dropped where reprojection cannot hold it: the camera before saw less than
     MIN_SHARED_VIEW of what this view shows (a cut), the view's size changed, or the caller says
     so (forget: the scene or a setting changed). POOL as ProgressiveView's."""
@@ -132,4 +142,5 @@ class NavigatedViews:
         state.begin_frame(self._views)  # the first view draws a still's own rays (ProgressiveView)
         self._views += 1
         self._size = passes.size
-        return ProgressiveView(passes, self.settings, inputs_timer=inputs_timer, state=state)
+        settings = moving_view_settings(self.settings) if follow else self.settings
+        return ProgressiveView(passes, settings, inputs_timer=inputs_timer, state=state)

@@ -55,10 +55,10 @@ class ChainSettings:
         0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
              "coarse steps show as stair-steps in a sharp reflection", 0.0, 1.0)
     use_sharp_rays: bool = _setting(
-        False, "With half-resolution tracing, surfaces at most sharp_roughness rough also trace a full-resolution "
-               "ray of their own every iteration: a curved mirror shows its own reflection, not its neighbours' "
-               "(sharper stills). Off by default: under a moving camera such a mirror's reprojected history "
-               "does not yet beat one fresh iteration")
+        True, "With half-resolution tracing, surfaces at most sharp_roughness rough also trace a full-resolution "
+              "ray of their own every iteration: a curved mirror shows its own reflection, not its neighbours', "
+              "and a nearly smooth floor its sharp one. A view on the move in the viewport leaves them out: "
+              "there the reprojected history carries a mirror's image, and each update costs less")
     hiz_max_iterations: int = _setting(96, "Hi-Z tracing: most cell visits per ray", 8, 1024)
     use_importance_sampling: bool = _setting(
         True, "Sample ray directions from the GGX lobe (Halton sequence); off: mirror directions only")
