@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from conftest import SCENES
+from conftest import SCENES, rgb
 from ssr_addon.core.uniforms import RAY_OUTCOMES
 
 pytestmark = [pytest.mark.blender, pytest.mark.slow]
@@ -173,16 +173,20 @@ def floor_contact_rows(passes):
 
 def test_no_dark_seam_where_the_floor_meets_the_wall(render_scene):
     """Screen space alone (fallback=off): the floor row touching the far wall mirrors the wall's
-    foot as the row below it does (EEVEE's own: 99 %). It came out at 40 %: a dark line across
-    the frame, from rays reused from the wall's edge pixels and from a composite that took
-    more of the probe reflection out of the edge pixels than their image held."""
+    foot, the row below it the wall just above. It came out at 40 % of the row below: a dark line
+    across the frame, from rays reused from the wall's edge pixels and from a composite that took
+    more of the probe reflection out of the edge pixels than their image held. A mirror shows the
+    contact row no darker against the row below than EEVEE's frame shows the wall's foot against
+    the row above it (EEVEE darkens that corner: 79 % at 320x180, where Cycles shows 99 %)."""
     out = render_scene("steel_room", "ssr", "--resolution", "320x180", "--set", "fallback=off")
     passes, final = out.passes(), out.final()
     rows, columns = floor_contact_rows(passes)
     assert columns.size > 50
     luminance = final.mean(axis=-1)
     ratio = luminance[rows, columns].mean() / luminance[rows + 1, columns].mean()
-    assert ratio > 0.85, f"the contact row is {ratio:.0%} of the row below"
+    frame = rgb(passes, "Combined").mean(axis=-1)
+    mirrored = frame[rows - 1, columns].mean() / frame[rows - 2, columns].mean()
+    assert ratio >= mirrored, f"the contact row is {ratio:.0%} of the row below; the wall's foot {mirrored:.0%}"
 
 
 def test_auto_resolves_what_leaves_the_frame(render_scene):
