@@ -246,3 +246,21 @@ def test_auto_counts_the_light_whose_rays_would_reach_geometry(gpu_backend, tmp_
     auto, timer = render_frame(scene, replace(request, settings=ChainSettings()))
     # Rendered once: a guard band or a cube map would have rendered the frame again.
     assert "cube" not in auto.stats["captured"] and "fallback_choice" not in timer.milliseconds
+
+
+def test_cycles_captures_show_the_floor_what_cycles_shows(render_scene):
+    """capture_engine=cycles: where rolling_ball's near-mirror floor reflects the ball, the boxes
+    and the backdrop, ours shows what a Cycles render of the frame shows there, as a viewer would
+    not tell apart: most pixels within 3 % of its level, and not brighter or darker overall by
+    more than that. Where the same floor reflects the plain world (what EEVEE's frame gets right by
+    itself), the two agree to 1 %. The capture's light stands where the screen sees the same
+    surface (lit by EEVEE, the objects came out 10 % bright), and the floor, out of the capture
+    camera's sight, still hides the sky below them (hidden, 23 % bright)."""
+    reflects_world, reflects_object, _, _ = floor_mirror_rays("rolling_ball", 160, 90)
+    assert reflects_world.sum() > 500 and reflects_object.sum() > 1000
+    cycles = render_scene("rolling_ball", "cycles", "--resolution", "160x90", "--samples", "256").final()
+    ours = render_scene("rolling_ball", "ssr", "--resolution", "160x90", "--set", "capture_engine=cycles").final()
+    level = cycles[reflects_object].mean()
+    error = (ours - cycles)[reflects_object] / level
+    assert np.median(np.abs(error)) <= 0.03 and abs(error.mean()) <= 0.03, (np.median(np.abs(error)), error.mean())
+    assert np.abs(ours - cycles)[reflects_world].mean() <= 0.01 * cycles[reflects_world].mean()

@@ -150,7 +150,8 @@ def _capture(scene, reflector, plane, view, projection, radiance, normal, depth)
     depth = depth.copy()
     depth[~shows_a_surface(normal)] = BACKGROUND_DEPTH
     return PlanarCapture(np.ascontiguousarray(radiance, dtype=np.float32), depth.astype(np.float32),
-                         np.ascontiguousarray(normal, dtype=np.float32), view, projection, plane, reflector.name)
+                         np.ascontiguousarray(normal, dtype=np.float32), view, projection, plane, reflector.name,
+                         path_traced=scene.render.engine == "CYCLES")
 
 
 def draw_planar_capture(scene, view_layer, viewport, camera, size, samples, reflector, plane, changes):
@@ -180,7 +181,9 @@ def render_planar_capture(scene, size, reflector, plane, folder, changes):
     capture_camera.matrix_world = Matrix(np.linalg.inv(np.asarray(view, np.float64)).tolist())
     changes.set(scene, "camera", capture_camera)
     for obj in _hidden_for_capture(scene, reflector, plane):
-        changes.set(obj, "hide_render", True)
+        # Out of the capture camera's sight only: a path tracer's light still meets it (the
+        # reflector hides the sky below what it mirrors, and mirrors light onto it).
+        changes.set(obj, "visible_camera", False)
     layers = render_to_exr(scene, os.path.join(folder, "planar_capture.exr"), changes)
     view, projection = camera_matrices(scene, *size)
     return _capture(scene, reflector, plane, view, projection, pass_layer(layers, "Combined"),

@@ -36,6 +36,7 @@ class PlanarCapture:
     projection_matrix: np.ndarray  # (4, 4)
     plane: tuple                 # (nx, ny, nz, d): n.x + d = 0 in world space, n towards what it reflects
     reflector: str = ""          # the reflector's object name
+    path_traced: bool = False    # lit by a path tracer (capture_engine=cycles): with the indirect light EEVEE lacks
 
     def textures(self):
         """The capture as the chain's resources (gpu_passes.PLANAR_TRACE reads them)."""

@@ -12,7 +12,9 @@
  * hides the true hit from the camera, unless both found the same surface: then the screen's
  * stands, lit as the frame lights it (EEVEE lights the capture's view anew, and its
  * screen-space light there differs: the walls of a corridor mirrored in its floor came out
- * darker than the frame shows them).
+ * darker than the frame shows them). A capture path traced over an EEVEE frame
+ * (params.capture_light_stands) stands there too: it carries the indirect light EEVEE's frame
+ * lacks, the reflector's own among it, and sees the hit along the ray, as a reflection does.
  *
  * Inputs:  ray_hit_tx, ray_dir_tx, ray_stats_tx (the screen trace), depth_tx, normal_tx,
  *          roughness_tx, history_record_tx (the frame), capture_depth_tx, capture_normal_tx,
@@ -163,7 +165,8 @@ void main()
   }
   vec3 hit_position = ray_view_position(ray, t);
   float hit_distance = distance(capture_origin, hit_position);
-  bool same_surface = screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal);
+  bool same_surface = params.capture_light_stands == 0 &&
+                      screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal);
   if (same_surface && (hit.w >= 1.0 || params.probe_reflection == 0)) {
     return;
   }
