@@ -141,7 +141,8 @@ class ChainSettings:
         items=(("eevee", "EEVEE", "EEVEE, drawn through the 3D View where there is one: fast; what they show is lit "
                                   "without indirect light, as EEVEE lights the frame"),
                ("cycles", "Cycles", "Cycles at a few samples, denoised: what they show is lit as a path tracer "
-                                    "lights it, at the cost of a Cycles render per capture")),
+                                    "lights it, and a floor's reflection takes that light even where the frame "
+                                    "shows the same surface; at the cost of a Cycles render per capture")),
         group="fallback")
     cube_size: int = _setting(128, "Depth cube map: pixels along each face's side", 16, 2048, group="fallback")
     cube_steps: int = _setting(64, "Depth cube map: march steps per ray before the secant search", 8, 512,
