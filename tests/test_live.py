@@ -165,7 +165,8 @@ def _material_nodes():
 def test_an_orbit_shows_ssr_in_every_view_and_history_only_helps(live_view, tmp_path):
     """preview --orbit: each moving view, shown after one iteration from the last view's history, is
     nearer a converged still of that view than one iteration of its own passes without history,
-    SSR shows in every view, and the orbit flickers within the stability suite's limit."""
+    SSR shows in every view, and the orbit flickers within the stability suite's limit and less
+    than those iterations without history do."""
     from lab.bench.stability import FLICKER_LIMIT
     from lab.live_latency import orbit_quality
     from ssr_addon.core.settings import ChainSettings
@@ -175,7 +176,7 @@ def test_an_orbit_shows_ssr_in_every_view_and_history_only_helps(live_view, tmp_
     for row in rows:
         assert row["moving"] <= row["without_history"], rows
         assert row["moving"] <= 0.1 < row["without_ssr"], rows  # the preview's bound; SSR shows
-    assert flicker <= FLICKER_LIMIT
+    assert flicker["moving"] <= min(FLICKER_LIMIT, flicker["without_history"]), flicker  # history steadies it
     assert all(view["history"] and view["draws"] >= 6 for view in timings["orbit"])
     assert timings["orbit_updates_per_second"] > 0
     assert all((tmp_path / "orbit" / f"view_{index:02d}.{extension}").is_file()
