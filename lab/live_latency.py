@@ -2,13 +2,15 @@
 
     python -m lab live [--resolutions WxH ...] [--orbit N] [--orbit-scenes NAME ...] [--page docs/measurements.md]
 
-At each resolution the scene camera's view is previewed once to warm EEVEE's viewport
-(shader compilation), then the camera moves a little and the view is previewed again,
-exactly as the live mode captures and refines a view that has just stopped moving
-(ssr_addon.batch.preview). The second preview's images (first image, converged) go to
-IMAGES/WxH/ (IMAGES: --images, default docs/live) and its timings into the table; it then
-orbits MOVING_VIEWS views (preview --orbit), whose updates are timed against one one-sample
-viewport draw of Combined, and their PNGs go to IMAGES/WxH/orbit/.
+Each resolution is a 3D View's size; the live mode captures and traces it at --live-resolution
+percent of it (default: the add-on's Live Resolution). At each, the scene camera's view is
+previewed once to warm EEVEE's viewport (shader compilation), then the camera moves a little and
+the view is previewed again, exactly as the live mode captures and refines a view that has just
+stopped moving (ssr_addon.batch.preview). The second preview's images (first image, converged)
+go to IMAGES/WxH/ (IMAGES: --images, default docs/live; WxH the view's size) and its timings into
+the table; it then orbits MOVING_VIEWS views (preview --orbit), whose updates are timed against
+one one-sample viewport draw of Combined of the whole view (what EEVEE's own viewport draws when
+the view moves) and at the captured size, and their PNGs go to IMAGES/WxH/orbit/.
 Then, at the first resolution, --orbit views around each of --orbit-scenes, each view measured
 against a converged still of it (orbit_quality).
 """
@@ -33,27 +35,35 @@ from ssr_addon.core.gpu_backend import StageTimer, TexturePool, describe_gpu, do
 from ssr_addon.core.progressive import STEP_SECONDS, ProgressiveView, moving_view_settings
 from ssr_addon.core.settings import ChainSettings
 from ssr_addon.ui.live import draw_image
+from ssr_addon.ui.live_session import live_capture_size
+from ssr_addon.ui.properties import UI_PROPERTIES
 from .bench.scenes import REPO, resolve_scene
 from .bench.stability import FLICKER_LIMIT
 from .docs import format_resolutions, page_link, require_page, rewrite_block
 
 SCENE = "mirror_floor"
 OUT = os.path.join(REPO, "docs", "live")
+VIEW_SIZES = ((320, 180), (1280, 720))  # the 3D Views measured
 MOVING_VIEWS = 6                      # orbit views the update while moving is timed over
 ORBIT_SCENES = ("wet_street", "rolling_ball")
+LIVE_RESOLUTION = UI_PROPERTIES["live_resolution"].keywords["default"]
 
 
-def measure(resolution, images):
+def measure(view_size, live_resolution, images):
+    """The timings of a view of VIEW_SIZE captured at LIVE_RESOLUTION percent of it."""
     scene = load_scene(resolve_scene(SCENE))
-    folder = os.path.join(images, "{}x{}".format(*resolution))
-    run_preview(scene, folder, ChainSettings(), resolution, log=lambda line: None)  # warms the viewport engine
+    folder = os.path.join(images, "{}x{}".format(*view_size))
+    size = live_capture_size(view_size, live_resolution)
+    run_preview(scene, folder, ChainSettings(), size, log=lambda line: None)  # warms the viewport engine
     scene.camera.location.x += 0.05  # the view changes, as after a navigation
     bpy.context.view_layer.update()
-    timings = run_preview(scene, folder, ChainSettings(), resolution, orbit=MOVING_VIEWS)
+    timings = run_preview(scene, folder, ChainSettings(), size, orbit=MOVING_VIEWS)
     for name in os.listdir(os.path.join(folder, "orbit")):  # the moving views' PNGs are kept
         if name.endswith(".exr"):
             os.remove(os.path.join(folder, "orbit", name))
-    timings["draw_ms"] = overlay_draw_ms(scene, timings["resolution"])
+    timings["view_size"] = view_size
+    timings["draw_ms"] = overlay_draw_ms(scene, view_size)
+    timings["view_draw_ms"] = one_sample_draw_ms(scene, view_size)
     timings["one_sample_draw_ms"] = one_sample_draw_ms(scene, timings["resolution"])
     return timings
 
@@ -100,7 +110,11 @@ def overlay_draw_ms(scene, size, repeats=20):
 
 def main(argv):
     parser = ArgumentParser(prog="python -m lab live", description=__doc__.splitlines()[0])
-    parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=[(320, 180), (1280, 720)])
+    parser.add_argument("--resolutions", nargs="+", type=parse_resolution, default=list(VIEW_SIZES),
+                        help=f"the views' sizes (default {format_resolutions(VIEW_SIZES)})")
+    parser.add_argument("--live-resolution", type=int, default=LIVE_RESOLUTION, choices=range(10, 101),
+                        metavar="PERCENT", help="the share of each view's size captured and traced "
+                                                f"(Live Resolution; default {LIVE_RESOLUTION})")
     parser.add_argument("--orbit", type=int, default=24, help="views of the orbits measured against converged "
                                                             "stills at the first resolution (0: none; default 24)")
     parser.add_argument("--orbit-scenes", nargs="+", default=list(ORBIT_SCENES))
@@ -110,8 +124,8 @@ def main(argv):
     arguments = parser.parse_args(argv)
     require_page(arguments.page)
     arguments.images = os.path.abspath(arguments.images)
-    rows = [measure(resolution, arguments.images) for resolution in arguments.resolutions]
-    first = arguments.resolutions[0]
+    rows = [measure(resolution, arguments.live_resolution, arguments.images) for resolution in arguments.resolutions]
+    view, first = arguments.resolutions[0], rows[0]["resolution"]  # the first view's size and captured size
     with tempfile.TemporaryDirectory() as scratch:  # the orbits' own images are not shown
         orbits = [(name, *orbit_quality(load_scene(resolve_scene(name)), os.path.join(scratch, name),
                                         ChainSettings(), first, arguments.orbit))
@@ -119,19 +133,23 @@ def main(argv):
     ensure_backend()
     images = os.path.relpath(arguments.images, REPO).replace(os.sep, "/")
     lines = [f"Latest run: `python -m lab live"
-             f"{f' --resolutions {format_resolutions(arguments.resolutions)}' if len(rows) != 2 else ''}"
+             f"{f' --resolutions {format_resolutions(arguments.resolutions)}' if tuple(arguments.resolutions) != VIEW_SIZES else ''}"
+             f"{f' --live-resolution {arguments.live_resolution}' if arguments.live_resolution != LIVE_RESOLUTION else ''}"
              f"{f' --orbit {arguments.orbit}' if arguments.orbit != 24 else ''}"
              f"{' --page docs/measurements.md' if arguments.page else ''}"
              f"{f' --block {arguments.block}' if arguments.block != 'live' else ''}"
              f"{f' --images {images}' if images != 'docs/live' else ''}` on {describe_gpu()['renderer']}, "
-             f"{SCENE}, balanced preset, after a camera move (EEVEE already compiled). While moving: the "
-             f"median of {MOVING_VIEWS} orbit views, each captured at one sample and shown after one "
-             "iteration from the last view's history; against one one-sample viewport draw of Combined "
-             "in the same run.", "",
-             "| resolution | moving: update | draws a update | one-sample draw | update / draw | updates per s "
+             f"{SCENE}, balanced preset, Live Resolution {arguments.live_resolution} %: a view of the first "
+             "column's size is captured and traced at the second's. After a camera move (EEVEE already "
+             f"compiled). While moving: the median of {MOVING_VIEWS} orbit views, each captured at one sample "
+             "and shown after one iteration from the last view's history; against one one-sample viewport "
+             "draw of Combined in the same run, of the whole view (what EEVEE's own viewport draws when the "
+             "view moves) and at the captured size.", "",
+             "| view | captured | moving: update | draws a update | EEVEE's one-sample draw of the view "
+             "| update / that draw | one-sample draw, captured size | update / that draw | updates per s "
              "| held: first SSR image | converged | iterations | capture (passes) | captures past the screen "
              "| lamp split | chain per iteration | overlay draw |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for row in rows:
         capture = row["capture_ms"]
         # A lamps-only draw is part of the capture; the analytic split is the chain's first pass.
@@ -139,15 +157,17 @@ def main(argv):
         # The held view's planar capture and cube map, drawn through the view; a moving view keeps them.
         beyond_ms = capture.get("planar_capture", 0.0) + capture.get("cube_capture", 0.0)
         update_ms = float(np.median([view["time_to_image_ms"] for view in row["orbit"]]))
-        lines.append(f"| {row['resolution'][0]}x{row['resolution'][1]} | {update_ms:.0f} ms "
-                     f"| {row['orbit'][-1]['draws']} at 1 sample | {row['one_sample_draw_ms']:.0f} ms "
+        lines.append(f"| {row['view_size'][0]}x{row['view_size'][1]} | {row['resolution'][0]}x{row['resolution'][1]} "
+                     f"| {update_ms:.0f} ms | {row['orbit'][-1]['draws']} at 1 sample | {row['view_draw_ms']:.0f} ms "
+                     f"| {update_ms / row['view_draw_ms']:.1f}x | {row['one_sample_draw_ms']:.0f} ms "
                      f"| {update_ms / row['one_sample_draw_ms']:.1f}x | {row['orbit_updates_per_second']:.2f} "
                      f"| {row['time_to_first_image_ms'] / 1000:.2f} s "
                      f"| {row['time_to_last_image_ms'] / 1000:.2f} s | {row['iterations']} "
                      f"| {capture['capture']:.0f} ms | {beyond_ms:.0f} ms | {lamp_split_ms:.0f} ms "
                      f"| {row['chain_ms_per_iteration']:.1f} ms | {row['draw_ms']:.2f} ms |")
     if orbits:
-        lines += ["", f"Orbits of {arguments.orbit} views, {ORBIT_STEP_DEGREES:g} degree each, at {first[0]}x{first[1]}: "
+        lines += ["", f"Orbits of {arguments.orbit} views, {ORBIT_STEP_DEGREES:g} degree each, of a {view[0]}x{view[1]} "
+                  f"view captured at {first[0]}x{first[1]}: "
                   "relative error on the reflective pixels against a converged still of each view, of the "
                   "moving view, of one iteration of its own passes without history, and of EEVEE's image "
                   "without SSR; flicker: the mean change of each one's error from one view to the next, "
@@ -166,8 +186,8 @@ def main(argv):
                          f"| {flicker['without_history']:.4f} | {flicker['without_ssr']:.4f} "
                          f"| {timings['orbit_updates_per_second']:.2f} |")
     folder = page_link(arguments.page or os.path.join(REPO, "docs", "measurements.md"),
-                       os.path.join(arguments.images, "{}x{}".format(*first))).replace(os.sep, "/")
-    lines += ["", f"First image, then converged ({first[0]}x{first[1]}):", "",
+                       os.path.join(arguments.images, "{}x{}".format(*view))).replace(os.sep, "/")
+    lines += ["", f"First image, then converged (a {view[0]}x{view[1]} view, captured at {first[0]}x{first[1]}):", "",
               f"![first live image]({folder}/first.png) ![converged live image]({folder}/preview.png)"]
     text = "\n".join(lines)
     print(text)

@@ -75,3 +75,50 @@ def test_fg_from_the_f0_aov_matches_eevee_specular_colour(gpu_backend):
     relative = np.abs(fg[glossy] - passes.specular_color[glossy]) / passes.specular_color[glossy]
     print("FG vs EEVEE specular colour, relative error percentiles:", np.percentile(relative, [50, 90]))
     assert np.median(relative) < 0.05
+
+
+@pytest.mark.slow
+def test_a_viewport_capture_without_f0_composites_as_with_it(gpu_backend):
+    """A viewport capture draws no F0 AOV (a draw less a moving view's update): the composite's FG
+    is then EEVEE's own specular colour. Over the same passes, the image must be the one FG from
+    the F0 AOV and the add-on's DFG table gives, to the table's own precision."""
+    from dataclasses import replace
+    from ssr_addon.blender.material_aovs import F0_AOV, ROUGHNESS_AOV
+    from ssr_addon.blender.overrides import TemporaryChanges
+    from ssr_addon.blender.render_passes import undo_coverage
+    from ssr_addon.blender.render_setup import rendered_view_layer
+    from ssr_addon.blender.scene_io import camera_matrices, load_scene
+    from ssr_addon.blender.viewport_capture import ViewportCapture, headless_view3d
+    from ssr_addon.core.chain import ChainState, run_chain
+    from ssr_addon.core.gpu_backend import download
+    from ssr_addon.core.inputs import ChainInputs
+    scene = load_scene(os.path.join(SCENES, "rough_spheres.py"))
+    view_layer = rendered_view_layer(scene)
+    size = (160, 90)
+    view, projection = (np.asarray(matrix) for matrix in camera_matrices(scene, *size))
+    capture = ViewportCapture(*headless_view3d())
+    try:
+        with TemporaryChanges() as changes:
+            capture.hold_for_captures(changes)
+            capture.hold_set_up(scene, view_layer, changes)
+            passes = capture.capture(scene, view_layer, view, projection, size,
+                                     (scene.camera.data.clip_start, scene.camera.data.clip_end), samples=1)
+            aovs = capture.draw_passes(scene, view_layer, view, projection, size,
+                                       {name: (name, 3, 1) for name in (F0_AOV, ROUGHNESS_AOV)})
+    finally:
+        capture.release()
+    assert passes.f0 is None
+    with_f0 = replace(passes, f0=undo_coverage(aovs[F0_AOV], aovs[ROUGHNESS_AOV][..., 1], fallback=0.0))
+    settings = ChainSettings(fallback="off")
+    images = []
+    for frame_passes in (passes, with_f0):
+        state = ChainState.still()
+        state.begin_frame(1)
+        outputs = run_chain(ChainInputs.from_passes(frame_passes, settings), settings, state)
+        images.append(download(outputs["final"])[..., :3])
+    reflective = (passes.roughness <= 0.5) & (passes.specular_color.mean(-1) >= 0.1)
+    assert reflective.sum() > 1000
+    without, reference = images[0][reflective], images[1][reflective]
+    relative = float(np.abs(without - reference).sum() / np.abs(reference).sum())
+    print("composite without F0 against with it, relative L1 on the reflective pixels:", relative)
+    assert relative <= 0.015  # the DFG table's own convergence at grazing angles (test above)

@@ -111,7 +111,8 @@ def surface_layers(layers):
 def passes_from_layers(layers, surface, specular_light, lamp_light, view, projection, clip, engine, samples,
                        material_warnings=(), lamps=None):
     """RenderPasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
-    Combined, Depth, Normal, Glossy Color, the material AOVs, Vector if any), their SURFACE
+    Combined, Depth, Normal, Glossy Color, the material AOVs (F0's may be left out: f0 None), Vector if
+    any), their SURFACE
     (surface_layers), the specular light and its lamp highlights (or the LAMPS the chain splits
     off), the camera's matrices and CLIP (clip_start, clip_end)."""
     depth, normal, roughness, coverage = surface
@@ -121,7 +122,8 @@ def passes_from_layers(layers, surface, specular_light, lamp_light, view, projec
         normal=normal,
         roughness=roughness,
         specular_color=pass_layer(layers, "Glossy Color"),
-        f0=undo_coverage(pass_layer(layers, F0_AOV)[..., :3], coverage, fallback=0.0),
+        f0=undo_coverage(pass_layer(layers, F0_AOV)[..., :3], coverage, fallback=0.0) if F0_AOV in layers
+        else None,
         # Cycles has no Vector pass while motion blur is on: then objects count as still.
         motion=np.ascontiguousarray(layers["Vector"][..., :2]) if "Vector" in layers
         else np.zeros(depth.shape + (2,), np.float32),

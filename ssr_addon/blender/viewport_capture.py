@@ -5,7 +5,9 @@ The live viewport mode and the `preview` command share it. Each draw renders all
 viewport's TAA samples (scene.eevee.taa_samples), so the data passes (ONE_SAMPLE_PASSES) are
 drawn at one. A capture yields the same RenderPasses a render does
 (render_passes.passes_from_layers), so the chain cannot tell them apart:
-- Combined, Normal, Specular Light and Color, and the material AOVs come as they are;
+- Combined, Normal, Specular Light and Color, and the roughness AOV come as they are;
+- F0 is not drawn: EEVEE's Specular Color is the FG the composite would make of it
+  (RenderPasses.f0 None), and every draw counts in a moving view's update;
 - depth is the view-axis distance the materials write into the roughness AOV
   (material_aovs); only where a surface on screen has no node material to write it
   is the Position pass drawn as well, and depth taken from it;
@@ -25,7 +27,7 @@ import numpy as np
 from ..core.errors import SSRError
 from ..core.gpu_backend import download, lap
 from .lamp_renders import lamps_alone
-from .material_aovs import F0_AOV, ROUGHNESS_AOV, add_material_aovs
+from .material_aovs import ROUGHNESS_AOV, add_material_aovs
 from .overrides import TemporaryChanges
 from .render_passes import eevee_lamp_light, passes_from_layers, surface_layers, undo_coverage
 from .render_setup import SSR_BASE_RAYTRACING, decide_lamp_split, use_eevee_raytracing
@@ -36,15 +38,14 @@ CAPTURE_SHADINGS = ("MATERIAL", "RENDERED")
 # Pass name as a render's EXR names it -> the viewport's render_pass for it.
 VIEWPORT_PASSES = {
     "Combined": "COMBINED", "Normal": "NORMAL", "Position": "POSITION",
-    "Glossy Direct": "SPECULAR_LIGHT", "Glossy Color": "SPECULAR_COLOR",
-    ROUGHNESS_AOV: ROUGHNESS_AOV, F0_AOV: F0_AOV,
+    "Glossy Direct": "SPECULAR_LIGHT", "Glossy Color": "SPECULAR_COLOR", ROUGHNESS_AOV: ROUGHNESS_AOV,
 }
 
 # Passes one sample draws as all the viewport's samples do, bar edge antialiasing: drawn at one
 # sample, since an offscreen draw renders every sample the viewport is set to
 # (Instance::draw_viewport_image_render). Combined, Specular Light and Shadow, noisy from EEVEE's
 # sampling of lights, shadows and rays, are drawn at the scene's viewport samples.
-ONE_SAMPLE_PASSES = ("Normal", "Position", "Glossy Color", ROUGHNESS_AOV, F0_AOV)
+ONE_SAMPLE_PASSES = ("Normal", "Position", "Glossy Color", ROUGHNESS_AOV)
 
 
 def capture_problem(scene, space):

@@ -150,6 +150,7 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "capture_levels": (CAPTURE_LEVELS["planar"] if inputs.capture is not None else 0)
                           | (CAPTURE_LEVELS["cube"] if inputs.cube is not None else 0),
         "captures_changed": frame.captures_changed, "probe_reflection": inputs.probe_reflection,
+        "fg_from_specular_color": inputs.fg_from_specular_color,
         "capture_light_stands": inputs.probe_reflection and inputs.capture is not None and inputs.capture.path_traced,
     })
 

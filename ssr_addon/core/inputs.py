@@ -18,7 +18,8 @@ class RenderPasses:
     normal: np.ndarray           # (H, W, 3) world-space shading normal
     roughness: np.ndarray        # (H, W) 1 where no specular BSDF was rendered
     specular_color: np.ndarray   # (H, W, 3) the engine's pre-integrated specular reflectance (its FG)
-    f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV)
+    f0: np.ndarray               # (H, W, 3) specular reflectance at normal incidence (shader AOV); None
+                                 # where not captured (the viewport's): FG is then the engine's specular_color
     motion: np.ndarray           # (H, W, 2) screen offset to the previous frame, pixels, y up (Vector pass)
     specular_light: np.ndarray   # (H, W, 3) all reflected light, before FG: EEVEE's Specular Light,
                                  # Cycles' Glossy Direct + Indirect
@@ -112,6 +113,9 @@ class ChainInputs:
     # a capture's view of the world and of what the screen's fades leave betters it. A path
     # tracer's (Cycles) is exact, to the pixel's edges.
     probe_reflection: bool = True
+    # Without an F0 pass (RenderPasses.f0 None) the composite's FG is the engine's own specular
+    # colour, which EEVEE pre-integrates as the add-on's DFG table does (to 0.2 % median).
+    fg_from_specular_color: bool = False
 
     @property
     def size(self):
@@ -121,10 +125,11 @@ class ChainInputs:
     @classmethod
     def from_passes(cls, passes, settings, timer=None):
         """Upload RenderPasses (TIMER: "upload"); the lit scene (Combined) is also what reflections show."""
-        combined_tx = upload(passes.combined)
+        combined_tx, specular_color_tx = upload(passes.combined), upload(passes.specular_color)
         textures = {"radiance": combined_tx, "combined": combined_tx, "depth": upload(passes.depth),
                     "normal": upload(passes.normal), "roughness": upload(passes.roughness),
-                    "specular_color": upload(passes.specular_color), "f0": upload(passes.f0),
+                    "specular_color": specular_color_tx,
+                    "f0": specular_color_tx if passes.f0 is None else upload(passes.f0),  # unread without F0
                     "motion": upload(passes.motion)}
         for capture in (passes.capture, passes.cube):
             if capture is not None:
@@ -139,6 +144,6 @@ class ChainInputs:
                      ray_budget=ray_budget(passes.roughness, passes.depth, passes.clip_end, settings),
                      lamps=None if passes.lamps is None else passes.lamps.lamps, capture=passes.capture,
                      cube=passes.cube, frame_rect=passes.frame_rect,
-                     probe_reflection=passes.engine == "eevee")
+                     probe_reflection=passes.engine == "eevee", fg_from_specular_color=passes.f0 is None)
         lap(timer, "upload")
         return inputs

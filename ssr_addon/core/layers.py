@@ -43,7 +43,7 @@ def upsample_nearest(array, scale, shape):
 def read_layers(passes, outputs=None, names=None):
     """{layer name: (H, W, C) float32} of one frame: PASSES (RenderPasses) and the chain's
     OUTPUTS (ChainOutputs; None without SSR), only the layers NAMES where given. A layer
-    whose resource nothing wrote (SSR off, its pass skipped) is zero."""
+    whose resource nothing wrote (SSR off, its pass skipped, an input not captured) is zero."""
     height, width = passes.depth.shape
     textures = outputs.textures if outputs is not None else {}
     downloaded, layers = {}, {}
@@ -58,6 +58,8 @@ def read_layers(passes, outputs=None, names=None):
             pixels = downloaded[resource]
         elif resource in _INPUT_RESOURCES:
             pixels = getattr(passes, resource)
+            if pixels is None:  # not captured (a viewport capture's F0)
+                pixels = np.zeros((height, width, 4), np.float32)
             pixels = pixels[..., None] if pixels.ndim == 2 else pixels
         else:
             pixels = np.zeros((height, width, 4), np.float32)

@@ -73,6 +73,7 @@ PARAMS_FIELDS = (
     ("int", "captures_changed", "the captures are not the last frame's: what they show moved"),
     ("int", "probe_reflection", "the frame's own reflection is a probe's (EEVEE), not a path tracer's: captures "
                                 "take the world where rays escape and the shares the screen's fades leave"),
+    ("int", "fg_from_specular_color", "no F0 pass (a viewport capture's): FG is the engine's specular colour"),
     ("int", "capture_light_stands", "where the screen and the planar capture hit the same surface, the capture's "
                                     "light stands: it is path traced, the frame is EEVEE's"),
     ("mat4", "capture_world_to_view", "the planar capture's camera: the frame's mirrored in its plane"),

@@ -44,6 +44,12 @@ MOVING_SAMPLES = 1     # viewport samples of a capture while the view moves
 RATE_WINDOW = 5        # updates the rate while moving is measured over
 
 
+def live_capture_size(view_size, live_resolution):
+    """The size a view of VIEW_SIZE (width, height) is captured and traced at, at LIVE_RESOLUTION
+    percent (the Live Resolution setting); the overlay stretches the image over the view."""
+    return tuple(max(int(side * live_resolution / 100.0), 4) for side in view_size)
+
+
 class LiveSession:
     """Live SSR of one 3D View (SPACE, its WINDOW REGION and REGION_3D)."""
 
@@ -84,8 +90,7 @@ class LiveSession:
         return problem
 
     def capture_size(self, scene):
-        scale = scene.ssr.live_resolution / 100.0
-        return max(int(self.region.width * scale), 4), max(int(self.region.height * scale), 4)
+        return live_capture_size((self.region.width, self.region.height), scene.ssr.live_resolution)
 
     def _keys(self, scene):
         """(what the capture shows, what the chain reads): a change of the first captures anew,

@@ -11,7 +11,8 @@
  *   combined = diffuse_color * diffuse_light + specular_color * (lamp_specular + indirect_specular)
  *            + emission + environment (+ transmission, volumes...).
  * SSR estimates indirect specular light L, which the slides' estimator
- * multiplies by the pre-integrated FG = F0 * A + B, so with confidence c:
+ * multiplies by the pre-integrated FG = F0 * A + B (without an F0 pass, a viewport
+ * capture's, EEVEE's own specular_color, which pre-integrates it alike), so with confidence c:
  *   final = combined + c * FG * L - c * specular_color * indirect_specular.
  * Diffuse light, emission, the world seen directly and lamp highlights pass
  * through untouched; where c is 0 the probe/world reflection stays.
@@ -42,8 +43,10 @@ void main()
   vec2 uv = (vec2(texel) + 0.5) * params.pixel_size;
   vec3 normal = view_normal(texelFetch(normal_tx, texel, 0).xyz);
   float n_dot_v = clamp(dot(normal, -view_incident(uv)), 0.0, 1.0);
-  vec3 fg = fg_term(texelFetch(f0_tx, texel, 0).rgb, n_dot_v, texelFetch(roughness_tx, texel, 0).r);
   vec3 specular_color = texelFetch(specular_color_tx, texel, 0).rgb;
+  vec3 fg = params.fg_from_specular_color != 0 ?
+                specular_color :
+                fg_term(texelFetch(f0_tx, texel, 0).rgb, n_dot_v, texelFetch(roughness_tx, texel, 0).r);
   vec3 indirect = texelFetch(specular_indirect_tx, texel, 0).rgb;
   /* The engine filters each pass on its own, so where a pixel straddles an edge (the floor
    * row touching a wall) the product of the filtered colour and light can exceed what the
