@@ -6,11 +6,11 @@ Each resolution is a 3D View's size; the live mode captures and traces it at --l
 percent of it (default: the add-on's Live Resolution). At each, the scene camera's view is
 previewed once to warm EEVEE's viewport (shader compilation), then the camera moves a little and
 the view is previewed again, exactly as the live mode captures and refines a view that has just
-stopped moving (ssr_addon.batch.preview). The second preview's images (first image, converged)
-go to IMAGES/WxH/ (IMAGES: --images, default docs/live; WxH the view's size) and its timings into
-the table; it then orbits MOVING_VIEWS views (preview --orbit), whose updates are timed against
-one one-sample viewport draw of Combined of the whole view (what EEVEE's own viewport draws when
-the view moves) and at the captured size, and their PNGs go to IMAGES/WxH/orbit/.
+stopped moving (ssr_addon.batch.preview). The second preview's timings go into the table; it
+then orbits MOVING_VIEWS views (preview --orbit), whose updates are timed against one one-sample
+viewport draw of Combined of the whole view (what EEVEE's own viewport draws when the view moves)
+and at the captured size. The first resolution's images (first image, converged, and the orbit's
+PNGs in orbit/) go to IMAGES/WxH/ (IMAGES: --images, default docs/live; WxH the view's size).
 Then, at the first resolution, --orbit views around each of --orbit-scenes, each view measured
 against a converged still of it (orbit_quality).
 """
@@ -124,7 +124,9 @@ def main(argv):
     arguments = parser.parse_args(argv)
     require_page(arguments.page)
     arguments.images = os.path.abspath(arguments.images)
-    rows = [measure(resolution, arguments.live_resolution, arguments.images) for resolution in arguments.resolutions]
+    with tempfile.TemporaryDirectory() as scratch:  # only the first view's images are shown
+        rows = [measure(resolution, arguments.live_resolution, arguments.images if index == 0 else scratch)
+                for index, resolution in enumerate(arguments.resolutions)]
     view, first = arguments.resolutions[0], rows[0]["resolution"]  # the first view's size and captured size
     with tempfile.TemporaryDirectory() as scratch:  # the orbits' own images are not shown
         orbits = [(name, *orbit_quality(load_scene(resolve_scene(name)), os.path.join(scratch, name),
