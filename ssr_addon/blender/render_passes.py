@@ -111,10 +111,9 @@ def surface_layers(layers):
 def passes_from_layers(layers, surface, specular_light, lamp_light, view, projection, clip, engine, samples,
                        material_warnings=(), lamps=None):
     """RenderPasses from LAYERS ({pass name: image}, the names of a render's multilayer EXR:
-    Combined, Depth, Normal, Glossy Color, the material AOVs (F0's may be left out: f0 None), Vector if
-    any), their SURFACE
-    (surface_layers), the specular light and its lamp highlights (or the LAMPS the chain splits
-    off), the camera's matrices and CLIP (clip_start, clip_end)."""
+    Combined, Depth, Normal, Glossy Color, the material AOVs (F0's may be left out: f0 None),
+    Vector if any), their SURFACE (surface_layers), the specular light and its lamp highlights
+    (or the LAMPS the chain splits off), the camera's matrices and CLIP (clip_start, clip_end)."""
     depth, normal, roughness, coverage = surface
     return RenderPasses(
         combined=pass_layer(layers, "Combined"),
