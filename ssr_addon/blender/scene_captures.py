@@ -28,7 +28,7 @@ import numpy as np
 from mathutils import Matrix, Vector
 
 from ..core.captures import (PLANE_NORMAL_COS, PLANE_TOLERANCE_PX, CubeCapture, PlanarCapture, cube_atlas,
-                             cube_face_projection, cube_face_views, mirror_matrix, pixel_footprints)
+                             cube_face_projection, cube_face_views, pixel_footprints, planar_capture_matrices)
 from ..core.errors import SSRError
 from ..core.inputs import BACKGROUND_DEPTH
 from .baselines import default_probe_placement, rendered_geometry
@@ -45,7 +45,6 @@ REFLECTOR_THINNESS = 0.02
 REFLECTOR_CANDIDATES = 4
 # capture_engine=cycles: samples per pixel of a capture, denoised.
 CYCLES_CAPTURE_SAMPLES = 32
-_FLIP_X = np.diag((-1.0, 1.0, 1.0, 1.0))
 
 
 def _thin_axis(obj):
@@ -127,16 +126,6 @@ def world_positions(depth, view_matrix, projection_matrix):
     return view_points @ view_to_world[:3, :3].T + view_to_world[:3, 3]
 
 
-def capture_matrices(camera, plane):
-    """(world to view, view to clip) of the capture camera of PLANE: CAMERA, the (world to view,
-    view to clip) of the view the capture serves, mirrored, its x axis (and so its lens shift)
-    flipped back."""
-    view, projection = camera
-    camera_to_world = mirror_matrix(plane) @ np.linalg.inv(np.asarray(view, np.float64)) @ _FLIP_X
-    return (np.linalg.inv(camera_to_world).astype(np.float32),
-            (_FLIP_X @ np.asarray(projection, np.float64) @ _FLIP_X).astype(np.float32))
-
-
 def _hidden_for_capture(scene, reflector, plane):
     """The objects a capture of PLANE leaves out: the reflector and what lies wholly behind it."""
     normal, offset = Vector(plane[:3]), plane[3]
@@ -160,7 +149,7 @@ def draw_planar_capture(scene, view_layer, viewport, camera, size, samples, refl
     positions at one. Hides through CHANGES."""
     for obj in _hidden_for_capture(scene, reflector, plane):
         changes.set(obj, "hide_viewport", True)
-    view, projection = capture_matrices(camera, plane)
+    view, projection = planar_capture_matrices(camera, plane)
     layers = viewport.draw_passes(scene, view_layer, view, projection, size, {
         "Combined": ("COMBINED", 4, samples), "Normal": ("NORMAL", 3, 1), "Position": ("POSITION", 3, 1)})
     return _capture(scene, reflector, plane, view, projection, layers["Combined"], layers["Normal"],
@@ -177,7 +166,7 @@ def render_planar_capture(scene, size, reflector, plane, folder, changes):
     capture_camera = bpy.data.objects.new("SSR Planar Capture", capture_data)
     scene.collection.objects.link(capture_camera)
     changes.on_restore(lambda: (bpy.data.objects.remove(capture_camera), bpy.data.cameras.remove(capture_data)))
-    view, _ = capture_matrices(camera_matrices(scene, *size), plane)
+    view, _ = planar_capture_matrices(camera_matrices(scene, *size), plane)
     capture_camera.matrix_world = Matrix(np.linalg.inv(np.asarray(view, np.float64)).tolist())
     changes.set(scene, "camera", capture_camera)
     for obj in _hidden_for_capture(scene, reflector, plane):

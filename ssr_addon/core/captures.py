@@ -14,6 +14,11 @@ from .inputs import BACKGROUND_DEPTH
 # of a frame: blender.scene_captures.reflector_share).
 PLANE_TOLERANCE_PX = 2.0
 PLANE_NORMAL_COS = 0.99
+# World-to-view entries (rotation, and translation in scene units) of a capture camera and of a
+# view's mirrored camera that differ by less than this are the same camera: float32's rounding
+# at a few hundred units is far below it, a one-degree orbit step far above.
+CAPTURE_VIEW_TOLERANCE = 1e-3
+_FLIP_X = np.diag((-1.0, 1.0, 1.0, 1.0))
 
 
 def pixel_footprints(depth, projection_matrix):
@@ -38,10 +43,31 @@ class PlanarCapture:
     reflector: str = ""          # the reflector's object name
     path_traced: bool = False    # lit by a path tracer (capture_engine=cycles): with the indirect light EEVEE lacks
 
+    def drawn_for(self, view_matrix):
+        """Whether this capture's camera is that of the view VIEW_MATRIX (world to view) mirrored:
+        then a mirror's rays run along its own view rays. A moving view in the 3D View traces the
+        held view's capture, whose camera no longer mirrors it."""
+        return bool(np.allclose(mirrored_view(view_matrix, self.plane), self.view_matrix, atol=CAPTURE_VIEW_TOLERANCE))
+
     def textures(self):
         """The capture as the chain's resources (gpu_passes.PLANAR_TRACE reads them)."""
         return {"capture_radiance": upload(self.radiance), "capture_depth": upload(self.depth),
                 "capture_normal": upload(self.normal)}
+
+
+def planar_capture_matrices(camera, plane):
+    """(world to view, view to clip) of the capture camera of PLANE: CAMERA, the (world to view,
+    view to clip) of the view the capture serves, mirrored. A mirror is not a rotation, so its x
+    axis (and so its lens shift) is flipped back: a camera like any other."""
+    view, projection = camera
+    return (mirrored_view(view, plane).astype(np.float32),
+            (_FLIP_X @ np.asarray(projection, np.float64) @ _FLIP_X).astype(np.float32))
+
+
+def mirrored_view(view, plane):
+    """World to view (float64) of the camera of VIEW (world to view) mirrored in PLANE, its x axis
+    flipped back (planar_capture_matrices)."""
+    return np.linalg.inv(mirror_matrix(plane) @ np.linalg.inv(np.asarray(view, np.float64)) @ _FLIP_X)
 
 
 def mirror_matrix(plane):

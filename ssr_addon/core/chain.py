@@ -145,7 +145,7 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "reproject_hit": settings.temporal_reprojection == "hit", "history_mode": history_mode,
         "history_frames": history_frames,
         "hiz_level": _level_rects(hiz_rects), "color_level": _level_rects(color_rects),
-        **_capture_params(inputs.capture, frame.capture_color_rects),
+        **_capture_params(inputs.capture, view, frame.capture_color_rects),
         **_cube_params(inputs.cube, frame.cube_color_rects, settings),
         "capture_levels": (CAPTURE_LEVELS["planar"] if inputs.capture is not None else 0)
                           | (CAPTURE_LEVELS["cube"] if inputs.cube is not None else 0),
@@ -155,12 +155,12 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
     })
 
 
-def _capture_params(capture, color_rects):
+def _capture_params(capture, view_matrix, color_rects):
     if capture is None:
-        return {"capture_world_to_view": np.eye(4), "capture_view_to_clip": np.eye(4),
+        return {"capture_from_this_view": 0, "capture_world_to_view": np.eye(4), "capture_view_to_clip": np.eye(4),
                 "capture_plane": (0, 0, 0, 0), "capture_size": (1, 1), "capture_color_levels": 0,
                 "capture_color_level": _level_rects(())}
-    return {"capture_world_to_view": capture.view_matrix,
+    return {"capture_from_this_view": capture.drawn_for(view_matrix), "capture_world_to_view": capture.view_matrix,
             "capture_view_to_clip": capture.projection_matrix, "capture_plane": capture.plane,
             "capture_size": capture.depth.shape[::-1], "capture_color_levels": len(color_rects),
             "capture_color_level": _level_rects(color_rects)}

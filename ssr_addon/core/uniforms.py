@@ -76,6 +76,8 @@ PARAMS_FIELDS = (
     ("int", "fg_from_specular_color", "no F0 pass (a viewport capture's): FG is the engine's specular colour"),
     ("int", "capture_light_stands", "where the screen and the planar capture hit the same surface, the capture's "
                                     "light stands: it is path traced, the frame is EEVEE's"),
+    ("int", "capture_from_this_view", "the planar capture's camera is this view's mirrored: its hits may replace the "
+                                      "screen's unchecked (planar_trace.glsl)"),
     ("mat4", "capture_world_to_view", "the planar capture's camera: the frame's mirrored in its plane"),
     ("mat4", "capture_view_to_clip", "its projection"),
     ("vec4", "capture_plane", "the reflector's plane in world space, n.x + d, n towards what it reflects"),

@@ -15,6 +15,8 @@
  * darker than the frame shows them). A capture path traced over an EEVEE frame
  * (params.capture_light_stands) stands there too: it carries the indirect light EEVEE's frame
  * lacks, the reflector's own among it, and sees the hit along the ray, as a reflection does.
+ * A capture drawn for another view (params.capture_from_this_view 0: a moving view in the 3D
+ * View traces the held view's) is held to more: other_views_hit_holds.
  *
  * Inputs:  ray_hit_tx, ray_dir_tx, ray_stats_tx (the screen trace), depth_tx, normal_tx,
  *          roughness_tx, history_record_tx (the frame), capture_depth_tx, capture_normal_tx,
@@ -48,12 +50,17 @@ bool on_silhouette(ivec2 texel)
   return abs(left + right - 2.0 * depth) > tolerance || abs(below + above - 2.0 * depth) > tolerance;
 }
 
+/* The screen trace ended on a surface (SCREEN_HIT: its hit uv and confidence). */
+bool screen_hit_it(vec4 screen_hit, float screen_outcome)
+{
+  return (screen_outcome == float(RAY_OUTCOME_SCREEN) || screen_outcome == float(RAY_OUTCOME_GUARD_BAND)) &&
+         screen_hit.w > 0.0;
+}
+
 bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
                      float capture_distance, vec3 capture_world_normal)
 {
-  bool screen_hit_it = screen_outcome == float(RAY_OUTCOME_SCREEN) ||
-                       screen_outcome == float(RAY_OUTCOME_GUARD_BAND);
-  if (!screen_hit_it || !(screen_hit.w > 0.0)) {
+  if (!screen_hit_it(screen_hit, screen_outcome)) {
     return false;
   }
   float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
@@ -63,6 +70,44 @@ bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, ve
   return abs(screen_distance - capture_distance) <= SAME_HIT_PX * pixel_footprint(hit_depth) &&
          dot(normalize(screen_normal), normalize(capture_world_normal)) > SAME_HIT_NORMAL_COS &&
          !on_silhouette(screen_texel);
+}
+
+/* Whether the frame's camera sees past WORLD_POINT: the surface it shows there lies farther along
+ * its view axis than the point, by more than the thickness and SAME_HIT_PX pixel footprints. */
+bool frame_sees_past(vec3 world_point)
+{
+  vec3 view_point = (params.world_to_view * vec4(world_point, 1.0)).xyz;
+  vec4 clip = params.view_to_clip * vec4(view_point, 1.0);
+  if (!(clip.w > 0.0)) {
+    return false;
+  }
+  vec2 uv = clip.xy / clip.w * 0.5 + 0.5;
+  if (any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(uv, vec2(1.0)))) {
+    return false;
+  }
+  float shown = texelFetch(depth_tx, texel_at(uv * params.viewport_size), 0).r;
+  return -view_point.z < shown - params.thickness - SAME_HIT_PX * pixel_footprint(-view_point.z);
+}
+
+/* A capture drawn for another view: its camera no longer mirrors the frame's, so a mirror's rays
+ * no longer run along its view rays, and where one passes just behind a surface the capture
+ * shows, its march can end there, on a surface that only hides the ray from that camera (a wet
+ * street's window reflections went dark 20 degrees into an orbit). Its hit (WORLD_HIT, at
+ * CAPTURE_DISTANCE along the ray) holds where the frame's camera does not see past it, as no
+ * surface lies where a camera sees through, and, where the screen hit something too, only if it
+ * is the nearer: a surface hidden from the frame's camera that the screen's march ran past. */
+bool other_views_hit_holds(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
+                           vec3 world_hit, float capture_distance)
+{
+  if (frame_sees_past(world_hit)) {
+    return false;
+  }
+  if (!screen_hit_it(screen_hit, screen_outcome)) {
+    return true;
+  }
+  float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
+  float screen_depth = -(view_origin + view_ray * screen_distance).z;
+  return capture_distance < screen_distance - SAME_HIT_PX * pixel_footprint(screen_depth);
 }
 
 vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float solid_angle)
@@ -141,10 +186,8 @@ void main()
      * shows it: nearer to a path trace's world than EEVEE's probe (mirror_floor's sky came out
      * 1.5-4.6 % dark through it, by channel). Where the screen hit something, that stands; and a
      * path tracer's own reflection of the world (params.probe_reflection 0) is exact. */
-    bool screen_hit_it = screen_stats.w == float(RAY_OUTCOME_SCREEN) ||
-                         screen_stats.w == float(RAY_OUTCOME_GUARD_BAND);
     vec2 world_px = world_shown_at(capture_direction);
-    if (params.probe_reflection == 0 || screen_hit_it || world_px.x < 0.0 ||
+    if (params.probe_reflection == 0 || screen_hit_it(hit, screen_stats.w) || world_px.x < 0.0 ||
         miss_outcome(ray, 1.0) != RAY_OUTCOME_ESCAPED)
     {
       return; /* the screen's outcome stands */
@@ -169,6 +212,12 @@ void main()
                       screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal);
   if (same_surface && (hit.w >= 1.0 || params.probe_reflection == 0)) {
     return;
+  }
+  if (!same_surface && params.capture_from_this_view == 0 &&
+      !other_views_hit_holds(hit, screen_stats.w, view_origin, view_ray, origin + normalize(direction) * hit_distance,
+                             hit_distance))
+  {
+    return; /* the screen's outcome stands */
   }
   vec2 hit_uv = hit_px / params.capture_size;
   vec3 radiance = capture_radiance(hit_uv, -hit_position.z, hit_distance, solid_angle);
