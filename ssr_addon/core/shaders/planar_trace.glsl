@@ -50,17 +50,16 @@ bool on_silhouette(ivec2 texel)
   return abs(left + right - 2.0 * depth) > tolerance || abs(below + above - 2.0 * depth) > tolerance;
 }
 
-/* The screen trace ended on a surface (SCREEN_HIT: its hit uv and confidence). */
-bool screen_hit_it(vec4 screen_hit, float screen_outcome)
+/* The screen trace ended on a surface (its confidence there may have faded to 0). */
+bool screen_ended_on_surface(float screen_outcome)
 {
-  return (screen_outcome == float(RAY_OUTCOME_SCREEN) || screen_outcome == float(RAY_OUTCOME_GUARD_BAND)) &&
-         screen_hit.w > 0.0;
+  return screen_outcome == float(RAY_OUTCOME_SCREEN) || screen_outcome == float(RAY_OUTCOME_GUARD_BAND);
 }
 
 bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
                      float capture_distance, vec3 capture_world_normal)
 {
-  if (!screen_hit_it(screen_hit, screen_outcome)) {
+  if (!screen_ended_on_surface(screen_outcome) || !(screen_hit.w > 0.0)) {
     return false;
   }
   float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
@@ -102,7 +101,7 @@ bool other_views_hit_holds(vec4 screen_hit, float screen_outcome, vec3 view_orig
   if (frame_sees_past(world_hit)) {
     return false;
   }
-  if (!screen_hit_it(screen_hit, screen_outcome)) {
+  if (!screen_ended_on_surface(screen_outcome) || !(screen_hit.w > 0.0)) {
     return true;
   }
   float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
@@ -187,7 +186,7 @@ void main()
      * 1.5-4.6 % dark through it, by channel). Where the screen hit something, that stands; and a
      * path tracer's own reflection of the world (params.probe_reflection 0) is exact. */
     vec2 world_px = world_shown_at(capture_direction);
-    if (params.probe_reflection == 0 || screen_hit_it(hit, screen_stats.w) || world_px.x < 0.0 ||
+    if (params.probe_reflection == 0 || screen_ended_on_surface(screen_stats.w) || world_px.x < 0.0 ||
         miss_outcome(ray, 1.0) != RAY_OUTCOME_ESCAPED)
     {
       return; /* the screen's outcome stands */
