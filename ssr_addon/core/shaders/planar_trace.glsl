@@ -56,17 +56,32 @@ bool screen_ended_on_surface(float screen_outcome)
   return screen_outcome == float(RAY_OUTCOME_SCREEN) || screen_outcome == float(RAY_OUTCOME_GUARD_BAND);
 }
 
+/* Where along the ray the screen's hit (SCREEN_HIT: uv, confidence) lies, -1 where it has none
+ * that counts (no surface, or faded to nothing); TOLERANCE: how near another hit must lie to be
+ * the same, SAME_HIT_PX of the frame's pixel footprints there. */
+float screen_hit_distance(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
+                          out float tolerance)
+{
+  tolerance = 0.0;
+  if (!screen_ended_on_surface(screen_outcome) || !(screen_hit.w > 0.0)) {
+    return -1.0;
+  }
+  float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
+  tolerance = SAME_HIT_PX * pixel_footprint(-(view_origin + view_ray * screen_distance).z);
+  return screen_distance;
+}
+
 bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
                      float capture_distance, vec3 capture_world_normal)
 {
-  if (!screen_ended_on_surface(screen_outcome) || !(screen_hit.w > 0.0)) {
+  float tolerance;
+  float screen_distance = screen_hit_distance(screen_hit, screen_outcome, view_origin, view_ray, tolerance);
+  if (screen_distance < 0.0) {
     return false;
   }
-  float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
-  float hit_depth = -(view_origin + view_ray * screen_distance).z;
   ivec2 screen_texel = texel_at(screen_hit.xy * params.viewport_size);
   vec3 screen_normal = texelFetch(normal_tx, screen_texel, 0).xyz;
-  return abs(screen_distance - capture_distance) <= SAME_HIT_PX * pixel_footprint(hit_depth) &&
+  return abs(screen_distance - capture_distance) <= tolerance &&
          dot(normalize(screen_normal), normalize(capture_world_normal)) > SAME_HIT_NORMAL_COS &&
          !on_silhouette(screen_texel);
 }
@@ -101,12 +116,9 @@ bool other_views_hit_holds(vec4 screen_hit, float screen_outcome, vec3 view_orig
   if (frame_sees_past(world_hit)) {
     return false;
   }
-  if (!screen_ended_on_surface(screen_outcome) || !(screen_hit.w > 0.0)) {
-    return true;
-  }
-  float screen_distance = texelFetch(ray_dir_tx, ivec2(gl_FragCoord.xy), 0).w;
-  float screen_depth = -(view_origin + view_ray * screen_distance).z;
-  return capture_distance < screen_distance - SAME_HIT_PX * pixel_footprint(screen_depth);
+  float tolerance;
+  float screen_distance = screen_hit_distance(screen_hit, screen_outcome, view_origin, view_ray, tolerance);
+  return screen_distance < 0.0 || capture_distance < screen_distance - tolerance;
 }
 
 vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float solid_angle)
