@@ -91,11 +91,7 @@ bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, ve
 bool frame_sees_past(vec3 world_point)
 {
   vec3 view_point = (params.world_to_view * vec4(world_point, 1.0)).xyz;
-  vec4 clip = params.view_to_clip * vec4(view_point, 1.0);
-  if (!(clip.w > 0.0)) {
-    return false;
-  }
-  vec2 uv = clip.xy / clip.w * 0.5 + 0.5;
+  vec2 uv = clip_to_uv(params.view_to_clip * vec4(view_point, 1.0));
   if (any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(uv, vec2(1.0)))) {
     return false;
   }
@@ -144,11 +140,7 @@ vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float so
  * not look that way or shows a surface there. */
 vec2 world_shown_at(vec3 direction)
 {
-  vec4 clip = params.capture_view_to_clip * vec4(direction, 0.0);
-  if (!(clip.w > 0.0)) {
-    return vec2(-1.0);
-  }
-  vec2 px = (clip.xy / clip.w * 0.5 + 0.5) * params.capture_size;
+  vec2 px = clip_to_uv(params.capture_view_to_clip * vec4(direction, 0.0)) * params.capture_size;
   if (any(lessThan(px, vec2(0.0))) || any(greaterThanEqual(px, params.capture_size)) ||
       !is_background(texelFetch(capture_depth_tx, ivec2(px), 0).r))
   {

@@ -38,8 +38,7 @@
 /* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
 vec2 previous_screen_position(vec3 view_point)
 {
-  vec4 previous_clip = params.previous_world_to_clip * (params.view_to_world * vec4(view_point, 1.0));
-  return previous_clip.w > 0.0 ? previous_clip.xy / previous_clip.w * 0.5 + 0.5 : vec2(-1.0);
+  return clip_to_uv(params.previous_world_to_clip * (params.view_to_world * vec4(view_point, 1.0)));
 }
 
 /* HIT: the resolve's (mean hit distance, mean hit uv) of this pixel. */

@@ -20,3 +20,10 @@ vec3 ray_point_at_depth(vec3 ray_origin, vec3 ray_direction, float depth)
 {
   return ray_origin + ray_direction * ((-depth - ray_origin.z) / ray_direction.z);
 }
+
+/* The screen position (uv in [0,1]^2 where on screen) of a clip-space point, or vec2(-1) where it
+ * lies behind the camera (or is not a number). */
+vec2 clip_to_uv(vec4 clip)
+{
+  return clip.w > 0.0 ? clip.xy / clip.w * 0.5 + 0.5 : vec2(-1.0);
+}
