@@ -134,7 +134,6 @@ def test_planar_capture_shows_what_the_camera_cannot_see(gpu_backend):
     assert not (plain_outcome[..., 3] == RAY_OUTCOMES["planar"]).any()
 
 
-
 def test_a_capture_of_another_view_leaves_the_mirror_pixels_screen_space_gets_right(gpu_backend):
     """A moving 3D View traces the capture of the view it held (batch.frame.keep_view_captures),
     whose camera mirrors another view's: the frame's mirror rays no longer run along its view

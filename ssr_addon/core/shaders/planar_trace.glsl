@@ -71,11 +71,11 @@ float screen_hit_distance(vec4 screen_hit, float screen_outcome, vec3 view_origi
   return screen_distance;
 }
 
-bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
-                     float capture_distance, vec3 capture_world_normal)
+/* Whether the screen's hit (SCREEN_HIT: uv, confidence; at SCREEN_DISTANCE along the ray, within
+ * TOLERANCE: screen_hit_distance) is the capture's, at CAPTURE_DISTANCE with CAPTURE_WORLD_NORMAL. */
+bool screen_found_it(vec4 screen_hit, float screen_distance, float tolerance, float capture_distance,
+                     vec3 capture_world_normal)
 {
-  float tolerance;
-  float screen_distance = screen_hit_distance(screen_hit, screen_outcome, view_origin, view_ray, tolerance);
   if (screen_distance < 0.0) {
     return false;
   }
@@ -86,11 +86,11 @@ bool screen_found_it(vec4 screen_hit, float screen_outcome, vec3 view_origin, ve
          !on_silhouette(screen_texel);
 }
 
-/* Whether the frame's camera sees past WORLD_POINT: the surface it shows there lies farther along
- * its view axis than the point, by more than the thickness and SAME_HIT_PX pixel footprints. */
-bool frame_sees_past(vec3 world_point)
+/* Whether the frame's camera sees past VIEW_POINT (its view space): the surface it shows there lies
+ * farther along its view axis than the point, by more than the thickness and SAME_HIT_PX pixel
+ * footprints. */
+bool frame_sees_past(vec3 view_point)
 {
-  vec3 view_point = (params.world_to_view * vec4(world_point, 1.0)).xyz;
   vec2 uv = clip_to_uv(params.view_to_clip * vec4(view_point, 1.0));
   if (any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(uv, vec2(1.0)))) {
     return false;
@@ -102,18 +102,16 @@ bool frame_sees_past(vec3 world_point)
 /* A capture drawn for another view: its camera no longer mirrors the frame's, so a mirror's rays
  * no longer run along its view rays, and where one passes just behind a surface the capture
  * shows, its march can end there, on a surface that only hides the ray from that camera (a wet
- * street's window reflections went dark 20 degrees into an orbit). Its hit (WORLD_HIT, at
- * CAPTURE_DISTANCE along the ray) holds where the frame's camera does not see past it, as no
- * surface lies where a camera sees through, and, where the screen hit something too, only if it
- * is the nearer: a surface hidden from the frame's camera that the screen's march ran past. */
-bool other_views_hit_holds(vec4 screen_hit, float screen_outcome, vec3 view_origin, vec3 view_ray,
-                           vec3 world_hit, float capture_distance)
+ * street's window reflections went dark 20 degrees into an orbit). Its hit (VIEW_HIT, in the
+ * frame's view space, at CAPTURE_DISTANCE along the ray) holds where the frame's camera does not
+ * see past it, as no surface lies where a camera sees through, and, where the screen hit something
+ * too (SCREEN_DISTANCE, TOLERANCE: screen_hit_distance), only if it is the nearer: a surface hidden
+ * from the frame's camera that the screen's march ran past. */
+bool other_views_hit_holds(float screen_distance, float tolerance, vec3 view_hit, float capture_distance)
 {
-  if (frame_sees_past(world_hit)) {
+  if (frame_sees_past(view_hit)) {
     return false;
   }
-  float tolerance;
-  float screen_distance = screen_hit_distance(screen_hit, screen_outcome, view_origin, view_ray, tolerance);
   return screen_distance < 0.0 || capture_distance < screen_distance - tolerance;
 }
 
@@ -211,13 +209,15 @@ void main()
   }
   vec3 hit_position = ray_view_position(ray, t);
   float hit_distance = distance(capture_origin, hit_position);
+  float tolerance;
+  float screen_distance = screen_hit_distance(hit, screen_stats.w, view_origin, view_ray, tolerance);
   bool same_surface = params.capture_light_stands == 0 &&
-                      screen_found_it(hit, screen_stats.w, view_origin, view_ray, hit_distance, hit_world_normal);
+                      screen_found_it(hit, screen_distance, tolerance, hit_distance, hit_world_normal);
   if (same_surface && (hit.w >= 1.0 || params.probe_reflection == 0)) {
     return;
   }
   if (!same_surface && params.capture_from_this_view == 0 &&
-      !other_views_hit_holds(hit, screen_stats.w, view_origin, view_ray, origin + normalize(direction) * hit_distance,
+      !other_views_hit_holds(screen_distance, tolerance, view_origin + normalize(view_ray) * hit_distance,
                              hit_distance))
   {
     return; /* the screen's outcome stands */
