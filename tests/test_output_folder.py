@@ -116,6 +116,24 @@ def test_sigterm_leaves_complete_frames_and_no_temporary_files(dolly, tmp_path):
     assert [f"frame_{frame:04d}" for frame in reported] == frames
 
 
+def test_a_signal_as_a_frame_lands_ends_the_run_once_the_report_lists_it(dolly, tmp_path, monkeypatch):
+    """SIGTERM the moment a frame's files are renamed into place, the narrowest window there is:
+    the run still ends with status 143, and report.json lists exactly the frames on disk."""
+    from ssr_addon.batch import cli, run
+    write_frame = run.write_frame
+
+    def written_then_terminated(*args, **kwargs):
+        written = write_frame(*args, **kwargs)
+        os.kill(os.getpid(), signal.SIGTERM)
+        return written
+    monkeypatch.setattr(run, "write_frame", written_then_terminated)
+    with pytest.raises(SystemExit) as ended:
+        cli.main(["render", str(dolly), "--method", "none", "--frames", "1-3", "--out", str(tmp_path), *SMALL])
+    assert ended.value.code == 128 + signal.SIGTERM
+    assert frames_in(tmp_path) == ["frame_0001.exr", "frame_0001.passes.exr", "frame_0001.png"]
+    assert [entry["frame"] for entry in strict_json(tmp_path / "report.json")["frames"]] == [1]
+
+
 def test_report_is_strict_json_even_with_non_finite_numbers(tmp_path):
     from ssr_addon.batch.outputs import write_json
     write_json(tmp_path / "report.json", {"mean": float("nan"), "frames": [{"ms": float("inf")}]})

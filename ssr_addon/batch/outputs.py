@@ -3,6 +3,8 @@ so an interrupted run leaves only whole files behind."""
 import json
 import math
 import os
+import signal
+import threading
 from contextlib import contextmanager
 
 import numpy as np
@@ -33,6 +35,26 @@ def written_together(paths):
     finally:
         for partial in partials:
             _discard(partial)
+
+
+@contextmanager
+def signals_held():
+    """Hold SIGTERM and Ctrl-C until the block ends, then act on the first that came: what the
+    block writes together (a frame and its report entry) is never split by them."""
+    if threading.current_thread() is not threading.main_thread():  # only the main thread has handlers
+        yield
+        return
+    caught = []
+    # A handler set outside Python (getsignal is None) cannot be put back, so it is left alone.
+    held = [signum for signum in (signal.SIGTERM, signal.SIGINT) if signal.getsignal(signum) is not None]
+    previous = {signum: signal.signal(signum, lambda signum, frame: caught.append(signum)) for signum in held}
+    try:
+        yield
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+        if caught:
+            signal.raise_signal(caught[0])
 
 
 def write_exr(path, channels):

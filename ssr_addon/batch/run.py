@@ -13,7 +13,7 @@ from ..core.chain import ChainState
 from ..core.errors import SSRError
 from ..core.gpu_backend import describe_gpu
 from .frame import FrameFallbacks, render_frame, write_frame
-from .outputs import prepare_output_folder, remove_partials
+from .outputs import prepare_output_folder, remove_partials, signals_held
 from .progress_bar import FrameProgress
 from .request import DEFAULT_WARMUP_FRAMES, frame_numbers
 from .run_report import FolderRecords, cost_summary, fingerprint, frame_paths, scene_identity
@@ -119,9 +119,11 @@ class RenderRun:
                 self._warn_once(images.passes, warned)
                 if frame in warmup:
                     continue
-                written = write_frame(request.out_dir, frame, images, scene, request.file_prefix)
-                timer.lap("write")
-                self.log(f"Saved: '{written}'")  # Blender's own line, which a farm's worker reads
+                with signals_held():  # a frame on disk is a frame in the report
+                    written = write_frame(request.out_dir, frame, images, scene, request.file_prefix)
+                    timer.lap("write")
+                    self.log(f"Saved: '{written}'")  # Blender's own line, which a farm's worker reads
+                    self._record(frame, images, timer, progress)
             except SSRError as error:
                 if request.on_error == "stop" or frame in warmup:
                     raise
@@ -131,7 +133,6 @@ class RenderRun:
                 progress.frame_done(frame, "failed")
                 self.records.write(self.report)
                 continue
-            self._record(frame, images, timer, progress)
             yield frame, images
 
     def _warmup_frames(self, first):
