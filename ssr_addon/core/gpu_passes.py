@@ -270,7 +270,7 @@ DENOISE_SPATIAL = GPUPass(
 TEMPORAL = GPUPass(
     "temporal", "temporal.glsl", stage="temporal",
     samplers=("spatial_tx", "reflection_hit_tx", "depth_tx", "motion_tx", "radiance_tx", "previous_radiance_tx",
-              "history_tx", "history_record_tx"),
+              "history_tx", "history_record_tx", "history_moments_tx"),
     outputs=(Output("reflection_img", history="history_tx", layers=(
                  Layer("SSR Reflection", "RGB", view=DebugView("REFLECTION", "Reflection",
                                                                "Reflected radiance alone")),
@@ -278,7 +278,8 @@ TEMPORAL = GPUPass(
                      "CONFIDENCE", "Confidence",
                      "How much of each pixel's reflection came from a ray hit (white: all)")))),
              Output("history_record_img", history="history_record_tx", layers=(
-                 Layer("SSR History Weight", "V", channels=(0,), convert=history_weight),))),
+                 Layer("SSR History Weight", "V", channels=(0,), convert=history_weight),)),
+             Output("history_moments_img", history="history_moments_tx")),
     defines=(("STATIC_HISTORY_FRAMES", f"{MAX_ITERATIONS}.0"),),
     runs=lambda frame: frame.settings.use_temporal, skipped=(("reflection", "spatial"),))
 DFG_TABLE = GPUPass("dfg_table", "dfg_table.glsl", outputs=(Output("dfg_img", size=(DFG_SIZE, DFG_SIZE)),),

@@ -7,10 +7,13 @@
  * Inputs:  spatial_tx (this frame's, spatially filtered, premultiplied), reflection_hit_tx
  *          (mean hit distance and uv, the captures' share), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
  *          radiance_tx and previous_radiance_tx (the lit scene now and in the history's frame),
- *          history_tx (last output: premultiplied radiance, confidence), history_record_tx (its record).
+ *          history_tx (last output: premultiplied radiance, confidence), history_record_tx (its record),
+ *          history_moments_tx (its moments).
  * Outputs: reflection_img (premultiplied radiance, confidence),
  *          history_record_img (frames accumulated; where the history was read, in pixels;
- *                     motion seen: the larger Vector-pass length at the pixel and at its hit).
+ *                     motion seen: the larger Vector-pass length at the pixel and at its hit),
+ *          history_moments_img (the mean over the history of each iteration's squared luminance;
+ *                     the last iteration's virtual image of its hit, in world space).
  *
  * Where the camera did not move a pixel (its history lies exactly where it is)
  * but the light at its hit is not what it was (an animated lamp or material,
@@ -24,13 +27,24 @@
  * animation (HISTORY_MODE_ANIMATION) clips the history to this frame's 3x3
  * neighbourhood, mean +- 1.25 standard deviations (Salvi's variance
  * clipping), which rejects stale history (disocclusion, moving objects), and
- * averages at most history_frames = 1 / (1 - temporal_weight). Recording the
+ * averages at most history_frames = 1 / (1 - temporal_weight). The box is
+ * one iteration's: a few heavy-tailed rays, whose mean falls below the truth
+ * more often than above it, so it clips good history down (a camera moving
+ * over an unchanged street came out darker than no history at all). Where the
+ * history saw the same reflected point (the virtual image it recorded within
+ * SAME_REFLECTION_PX pixel footprints of this pixel's), its upper side
+ * reaches at least the history's own noise, the spread of one iteration's
+ * luminance over the frames it holds; elsewhere (another surface, a
+ * disocclusion, a moving reflection) the box is as tight as before. Recording the
  * motion in the history catches what a still pixel cannot show by itself: the
  * floor a moving ball uncovers, the reflection of the place the ball left. A
  * still's own iterations (HISTORY_MODE_STILL) share one camera and scene.
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
+/* Hit-point reprojection reads the history within half a pixel of a planar mirror's image
+ * (test_frame_sequence); a virtual image a footprint away is another reflected point. */
+#define SAME_REFLECTION_PX 1.0
 /* Largest change of the light at a hit between frames that still counts as the same light:
  * EEVEE renders an unchanged scene the same every frame, Cycles with its seed animated does not. */
 #define RADIANCE_TOLERANCE 0.05
@@ -65,7 +79,14 @@ vec2 reprojected_uv(ivec2 pixel, vec2 uv, float depth, vec4 hit)
   return uv + texelFetch(motion_tx, pixel, 0).xy * params.pixel_size;
 }
 
-vec4 variance_clip(ivec2 pixel, vec4 history)
+float luminance(vec3 color)
+{
+  return dot(color, vec3(0.2126, 0.7152, 0.0722)); /* Rec. 709 */
+}
+
+/* HISTORY clipped to this iteration's neighbourhood, the box's upper side at least
+ * HISTORY_NOISE (0: the plain box). */
+vec4 variance_clip(ivec2 pixel, vec4 history, float history_noise)
 {
   vec4 mean = vec4(0.0), square = vec4(0.0);
   for (int y = -1; y <= 1; y++) {
@@ -79,7 +100,17 @@ vec4 variance_clip(ivec2 pixel, vec4 history)
   }
   mean /= 9.0;
   vec4 deviation = sqrt(max(square / 9.0 - mean * mean, 0.0));
-  return clamp(history, mean - VARIANCE_CLIP_GAMMA * deviation, mean + VARIANCE_CLIP_GAMMA * deviation);
+  vec4 lower = mean - VARIANCE_CLIP_GAMMA * deviation;
+  vec4 upper = mean + VARIANCE_CLIP_GAMMA * deviation;
+  if (!(history_noise > 0.0)) {
+    return clamp(history, lower, upper);
+  }
+  upper.rgb = mean.rgb + VARIANCE_CLIP_GAMMA * max(deviation.rgb, vec3(history_noise));
+  /* The radiance is premultiplied: it follows its clipped confidence first, so the wider box
+   * never lets more light through per unit of confidence than the history had. */
+  float confidence = clamp(history.a, lower.a, upper.a);
+  vec3 radiance = history.a > 0.0 ? history.rgb * (confidence / history.a) : history.rgb;
+  return vec4(clamp(radiance, lower.rgb, upper.rgb), confidence);
 }
 
 /* Screen motion in pixels at the pixel or its hit, the larger (0 where nothing moves). */
@@ -115,10 +146,14 @@ void main()
   reflection_img = current;
   history_record_img = vec4(1.0, 0.0, 0.0, motion);
   float depth = texelFetch(depth_tx, pixel, 0).r;
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
+  float squared_luminance = luminance(current.rgb) * luminance(current.rgb);
+  vec3 view_virtual_point = view_position(uv, depth) + view_incident(uv) * (hit.x > 0.0 ? hit.x : 0.0);
+  vec3 virtual_point = (params.view_to_world * vec4(view_virtual_point, 1.0)).xyz;
+  history_moments_img = vec4(squared_luminance, virtual_point);
   if (params.history_mode == HISTORY_MODE_NONE || is_background(depth)) {
     return;
   }
-  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
   vec2 previous_uv = reprojected_uv(pixel, uv, depth, hit);
   if (!(all(greaterThanEqual(previous_uv, vec2(0.0))) && all(lessThanEqual(previous_uv, vec2(1.0))))) {
     return; /* off screen last frame (or not a number): no history */
@@ -138,11 +173,17 @@ void main()
   bool captures_moved = params.captures_changed != 0 && hit.w > 0.0;
   bool holds_still = params.history_mode == HISTORY_MODE_STILL ||
                      (camera_held_it && max(motion, history_record.w) < 0.01 && !captures_moved);
+  vec4 history_moments = textureLod(history_moments_tx, previous_uv, 0.0);
   if (!holds_still) {
-    history = variance_clip(pixel, history);
+    bool same_reflection = hit.x > 0.0 && distance(history_moments.yzw, virtual_point) <
+                                              SAME_REFLECTION_PX * pixel_footprint(-view_virtual_point.z);
+    float history_luminance = luminance(history.rgb);
+    float history_noise = sqrt(max(history_moments.x - history_luminance * history_luminance, 0.0));
+    history = variance_clip(pixel, history, same_reflection ? history_noise : 0.0);
   }
   float most_frames = holds_still ? STATIC_HISTORY_FRAMES : params.history_frames;
   float count = min(history_count + 1.0, most_frames);
   reflection_img = mix(history, current, 1.0 / count);
+  history_moments_img = vec4(mix(history_moments.x, squared_luminance, 1.0 / count), virtual_point);
   history_record_img = vec4(count, previous_uv * params.viewport_size, motion);
 }
