@@ -75,7 +75,7 @@ bench-chain: $(STAMP)
 	$(PY) -m lab chain-stages --page $(PAGE)
 
 bench-memory: $(STAMP)
-	$(PY) -m lab memory
+	$(PY) -m lab memory --page $(PAGE)
 
 bench-lamps: $(STAMP)
 	$(PY) -m lab lamps --page $(PAGE)

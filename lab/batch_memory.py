@@ -1,6 +1,6 @@
 """Resident memory over a long 1600x900 batch run of the add-on's own per-frame work.
 
-    python -m lab memory [--frames 240] [--no-write]
+    python -m lab memory [--frames 240] [--no-write] [--page docs/measurements.md]
 
 Every frame does what `render` does after the engine's render: upload the
 passes, run the chain with temporal history, read the results back and write
@@ -22,6 +22,7 @@ from ssr_addon.core.chain import ChainState
 from ssr_addon.core.settings import ChainSettings
 from .bench.speed import COPY_PASS_LARGE as SIZE
 from .bench.speed import bench_scene_passes
+from .docs import require_page, rewrite_block
 
 
 def resident_mib():
@@ -33,7 +34,9 @@ def main(argv):
     parser = ArgumentParser(prog="python -m lab memory", description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=240)
     parser.add_argument("--no-write", action="store_true", help="skip writing the files")
+    parser.add_argument("--page", help="rewrite the memory block of this markdown page with the resident memory")
     arguments = parser.parse_args(argv)
+    require_page(arguments.page)
     scene, passes = bench_scene_passes()
     # The engine render is replaced by the one set of passes rendered above.
     batch_frame.render_passes = lambda *args, **kwargs: passes
@@ -41,7 +44,7 @@ def main(argv):
     request = RenderRequest(out_dir="", settings=ChainSettings())
     state, fallbacks = ChainState(), FrameFallbacks()  # as a run holds them, frame to frame
     checkpoints = {1, 60, 120, 240, arguments.frames}
-    stage_ms = {}
+    stage_ms, resident = {}, []
     with tempfile.TemporaryDirectory() as folder:
         for frame in range(1, arguments.frames + 1):
             state.begin_frame(frame)
@@ -52,8 +55,11 @@ def main(argv):
             for stage, ms in timer.milliseconds.items():
                 stage_ms.setdefault(stage, []).append(ms)
             if frame in checkpoints:
-                print(f"frame {frame:4d}: resident memory {resident_mib():8.1f} MiB", flush=True)
+                resident.append(f"frame {frame:4d}: resident memory {resident_mib():8.1f} MiB")
+                print(resident[-1], flush=True)
     print(f"\nper frame at {SIZE[0]}x{SIZE[1]} (median ms):")
     for stage, values in stage_ms.items():
         if stage != "render":
             print(f"  {stage:<14}{statistics.median(values):8.1f}")
+    if arguments.page:
+        rewrite_block(arguments.page, "memory", "```\n$ make bench-memory\n" + "\n".join(resident) + "\n```", "Benchmarks")
