@@ -6,7 +6,7 @@ import math
 import numpy as np
 
 from ssr_addon.core.inputs import BACKGROUND_DEPTH
-from ssr_addon.core.progressive import camera_motion
+from ssr_addon.core.progressive import UNSEEN_MOTION, camera_motion
 
 WIDTH, HEIGHT, LENS_FOCAL = 64, 36, 1.5  # focal length in units of the half-width
 
@@ -34,10 +34,31 @@ def test_a_sideways_slide_moves_each_point_by_focal_length_times_slide_over_dept
     before = projection @ view_at(0.0)
     motion, shared = camera_motion(depth, view_at(0.1), projection, before)
     focal_pixels = LENS_FOCAL * WIDTH / 2
-    assert np.allclose(motion[:, 10:, 0], focal_pixels * 0.1 / 5.0, atol=1e-3)
+    assert np.allclose(motion[:, 10:-1, 0], focal_pixels * 0.1 / 5.0, atol=1e-3)
     assert np.allclose(motion[:, :10, 0], focal_pixels * 0.1 / 2.5, atol=1e-3)
-    assert np.allclose(motion[..., 1], 0.0, atol=1e-3)
-    assert shared > 0.9
+    assert np.allclose(motion[:, :-1, 1], 0.0, atol=1e-3)
+    # The last column's points lay 0.96 px past the old screen's edge: the camera before did not see them.
+    assert np.all(motion[:, -1] == UNSEEN_MOTION)
+    assert shared == (WIDTH - 1) / WIDTH
+
+
+def test_what_the_nearer_strip_hid_from_the_camera_before_was_not_seen():
+    """The same slide, with the view before: its strip, 1.92 px further right, hid the far
+    plane's column just right of the strip's new edge (now at 10.5 px, then at 11.46, behind
+    the strip's edge at 11.92); the next column (then at 12.46) was in sight."""
+    depth = np.full((HEIGHT, WIDTH), 5.0, np.float32)
+    depth[:, :10] = 2.5
+    focal_pixels = LENS_FOCAL * WIDTH / 2
+    depth_before = np.full((HEIGHT, WIDTH), 5.0, np.float32)
+    strip_edge_before = 10 + focal_pixels * 0.1 / 2.5
+    depth_before[:, :int(round(strip_edge_before))] = 2.5  # texel centres left of 11.92
+    projection = perspective()
+    motion, shared = camera_motion(depth, view_at(0.1), projection, projection @ view_at(0.0), depth_before,
+                                   view_at(0.0))
+    assert np.all(motion[:, 10] == UNSEEN_MOTION)
+    assert np.allclose(motion[:, 11:-1, 0], focal_pixels * 0.1 / 5.0, atol=1e-3)
+    assert np.allclose(motion[:, :10, 0], focal_pixels * 0.1 / 2.5, atol=1e-3)  # the strip hides nothing of itself
+    assert shared == (WIDTH - 2) / WIDTH
 
 
 def test_the_world_moves_by_the_turn_alone_and_a_turn_away_shares_nothing():

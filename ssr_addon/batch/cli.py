@@ -20,7 +20,7 @@ from ..core.settings import ChainSettings
 from .compare import compare_modes
 from .outputs import prepare_output_folder, write_json, write_rgba_exr, written_together
 from .farm import run_farm
-from .preview import run_preview
+from .preview import ORBIT_STEP_DEGREES, run_preview
 from .request import DEFAULT_WARMUP_FRAMES, METHODS, RenderRequest, frame_numbers, parse_frames, parse_resolution
 from .run import run_render
 
@@ -107,6 +107,8 @@ def build_parser():
     preview.add_argument("--orbit", type=int, default=0, metavar="N",
                          help="then orbit the camera's target N views, each shown as the live view shows a moving "
                               "view (orbit/view_KK.exr and .png)")
+    preview.add_argument("--orbit-step", type=float, default=ORBIT_STEP_DEGREES, metavar="DEGREES",
+                         help=f"degrees between two orbit views (default {ORBIT_STEP_DEGREES:g})")
     preview.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                          help="override a chain setting (repeatable)")
     return parser
@@ -183,10 +185,13 @@ def _preview(arguments):
         raise SSRError(f"--iterations must be at least 1, got {arguments.iterations}")
     if arguments.orbit < 0:
         raise SSRError(f"--orbit must be 0 or more views, got {arguments.orbit}")
+    if not 0.0 < arguments.orbit_step <= 180.0:
+        raise SSRError(f"--orbit-step must be more than 0 and at most 180 degrees, got {arguments.orbit_step:g}")
     settings = ChainSettings().with_overrides(arguments.overrides)
     resolution = parse_resolution(arguments.resolution) if arguments.resolution else None
     scene = load_scene(arguments.scene)
-    return run_preview(scene, arguments.out, settings, resolution, arguments.iterations, arguments.orbit)
+    return run_preview(scene, arguments.out, settings, resolution, arguments.iterations, arguments.orbit,
+                       orbit_step=arguments.orbit_step)
 
 
 class _Terminated(BaseException):

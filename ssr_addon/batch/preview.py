@@ -1,4 +1,5 @@
-"""`python -m ssr_addon preview SCENE --out DIR [--orbit N]`: what the live viewport shows, headless.
+"""`python -m ssr_addon preview SCENE --out DIR [--orbit N [--orbit-step DEGREES]]`: what the live viewport
+shows, headless.
 
 The scene camera's view is captured through the startup file's 3D View exactly as
 the live mode captures the user's (viewport_capture), in Rendered shading with EEVEE,
@@ -10,7 +11,8 @@ chain milliseconds per iteration; the capture's include the upload and any lamps
 the chain's the analytic lamp split and the pyramids).
 
 With --orbit N the camera then orbits its target (the surface at the frame's centre) about
-the vertical, ORBIT_STEP_DEGREES a view, as an artist orbiting the 3D View: each view is
+the vertical, --orbit-step degrees a view (default ORBIT_STEP_DEGREES), as an artist orbiting the
+3D View: each view is
 captured at one sample and shown after one iteration from the last view's history, as the
 live view follows a moving view. Writes orbit/view_KK.exr per view as it is shown, and
 orbit/view_KK.png for each once the orbit is done: a PNG goes through Blender's colour
@@ -37,11 +39,12 @@ from ..core.progressive import STEP_SECONDS, NavigatedViews
 from .frame import FrameFallbacks, add_view_captures, decide_view_cube, keep_view_captures
 from .outputs import prepare_output_folder, read_rgba_exr, write_json, write_rgba_exr, written_together
 
-ORBIT_STEP_DEGREES = 1.0  # a slow orbit: a few pixels of motion a view at the frame's centre
+ORBIT_STEP_DEGREES = 1.0  # an artist orbiting: a few pixels of motion a view at the frame's centre
 ORBIT_SAMPLES = 1         # viewport samples of an orbit view's capture, as the live view's while moving
 
 
-def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbit=0, log=print, on_view=None):
+def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbit=0, log=print, on_view=None,
+                orbit_step=ORBIT_STEP_DEGREES):
     """Capture SCENE's camera view at RESOLUTION (default: the scene's) and refine it until it
     converges or has run ITERATIONS; then ORBIT views around it; write the images and timings into
     OUT_DIR; returns the timings. ON_VIEW(k, passes, ChainOutputs, recapture), if given, sees each
@@ -93,7 +96,8 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
             if orbit:
                 os.makedirs(os.path.join(out_dir, "orbit"), exist_ok=True)
                 capture.hold_set_up(scene, view_layer, changes)
-                for index, orbit_view in enumerate(orbit_view_matrices(view, target_distance(passes), orbit), 1):
+                orbit_matrices = orbit_view_matrices(view, target_distance(passes), orbit, orbit_step)
+                for index, orbit_view in enumerate(orbit_matrices, 1):
                     orbit_views.append(_orbit_view(
                         capture, views, index, out_dir, on_view,
                         lambda timer, orbit_view=orbit_view: keep_view_captures(

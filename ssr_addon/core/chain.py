@@ -37,6 +37,7 @@ class ChainState:
     convergence: ConvergenceCheck = field(default_factory=ConvergenceCheck)  # holds the last check's reflection
     # Only the camera moves between frames (NavigatedViews): the light at a hit is what it was, and
     # a change of it is the captures' noise (one sample now, many before), never a stale history.
+    # A frame's first iteration then runs HISTORY_MODE_VIEW (temporal.glsl).
     scene_holds_still: bool = False
 
     @classmethod
@@ -270,10 +271,11 @@ class FrameRun:
         frame, state, resources = self.frame, self.frame.state, self.resources
         iteration = state.sequence.next_iteration(keeps_history=frame.settings.use_temporal)
         has_history = iteration.read_slot is not None
-        mode = "none" if not has_history else ("animation" if first else "still")
+        mode = "none" if not has_history else "still" if not first else "view" if state.scene_holds_still \
+            else "animation"
         previous = state.previous_world_to_clip if has_history else frame.world_to_clip
         # A frame's own iterations see one instant: only its first compares with the last frame.
-        light_may_change = mode == "animation" and not state.scene_holds_still
+        light_may_change = mode == "animation"
         resources["previous_radiance"] = state.previous_radiance_tx if light_may_change else resources["radiance"]
         for output in gpu_passes.TEMPORAL.outputs:  # the history the iteration reads
             # Without history nothing reads it (history_lib.glsl); any texture not drawn into will do.

@@ -16,6 +16,8 @@ from .gpu_backend import StageTimer
 from .inputs import BACKGROUND_DEPTH, ChainInputs
 
 STEP_SECONDS = 0.05  # a step after the first adds iterations for about this long (the live view's tick)
+UNSEEN_MOTION = 1e6  # pixels: where a point the camera before did not see was on its screen (temporal.glsl)
+HIDDEN_DEPTH_TOLERANCE = 0.02  # nearer by this share of its distance: in front of the point, hiding it
 
 
 class ProgressiveView:
@@ -69,12 +71,15 @@ class ProgressiveView:
         return self.outputs
 
 
-def camera_motion(depth, view_matrix, projection_matrix, previous_world_to_clip):
+def camera_motion(depth, view_matrix, projection_matrix, previous_world_to_clip, previous_depth=None,
+                  previous_world_to_view=None):
     """The Vector pass of a still scene seen by a moving camera: per pixel of DEPTH ((H, W)
     view-axis distances, image order; BACKGROUND_DEPTH for the world), the screen offset in
     pixels, y up, to where the camera before (PREVIOUS_WORLD_TO_CLIP) saw the same point. The
-    world moves by direction alone. Returns ((H, W, 2) float32, the share of surface pixels the
-    camera before saw on its screen)."""
+    world moves by direction alone. A surface point the camera before did not see has the motion
+    UNSEEN_MOTION: off its screen or behind it, or, given its view (PREVIOUS_DEPTH, the same
+    size, and PREVIOUS_WORLD_TO_VIEW), hidden behind what it showed there. Returns ((H, W, 2)
+    float32, the share of surface pixels the camera before saw)."""
     height, width = depth.shape
     columns, rows = np.meshgrid(np.arange(width), np.arange(height))
     uv = np.stack([(columns + 0.5) / width, (height - rows - 0.5) / height], axis=-1)
@@ -85,15 +90,35 @@ def camera_motion(depth, view_matrix, projection_matrix, previous_world_to_clip)
     # A surface point lies DEPTH along the view axis (-z); the world, at infinity, is a direction.
     point = np.where(surface[..., None], direction * (depth / -direction[..., 2])[..., None], direction)
     homogeneous = np.concatenate([point, surface[..., None].astype(np.float64)], axis=-1)
-    world_to_clip = np.asarray(previous_world_to_clip, np.float64) @ np.linalg.inv(
-        np.asarray(view_matrix, np.float64))
-    clip = homogeneous @ world_to_clip.T
+    view_to_world = np.linalg.inv(np.asarray(view_matrix, np.float64))
+    clip = homogeneous @ (np.asarray(previous_world_to_clip, np.float64) @ view_to_world).T
     with np.errstate(divide="ignore", invalid="ignore"):
         previous_uv = np.where(clip[..., 3:] > 0.0, clip[..., :2] / clip[..., 3:] * 0.5 + 0.5, np.nan)
     seen = surface & np.all((previous_uv >= 0.0) & (previous_uv <= 1.0), axis=-1)
+    if previous_depth is not None:
+        distance = -(homogeneous @ (np.asarray(previous_world_to_view, np.float64) @ view_to_world).T)[..., 2]
+        seen &= ~_hidden(np.where(seen[..., None], previous_uv, 0.5), distance, previous_depth)
     motion = (previous_uv - uv) * (width, height)
+    motion[surface & ~seen] = UNSEEN_MOTION
     share = float(seen.sum() / surface.sum()) if surface.any() else 0.0
-    return np.nan_to_num(motion, nan=1e6).astype(np.float32), share
+    return np.nan_to_num(motion, nan=UNSEEN_MOTION).astype(np.float32), share
+
+
+def _hidden(previous_uv, distance, previous_depth):
+    """Whether a point DISTANCE along the view axis of the camera before, at PREVIOUS_UV on its
+    screen, lay behind what it showed there: nearer than the point by more than
+    HIDDEN_DEPTH_TOLERANCE at all four texels around (a surface seen at a slant, between texels
+    of other depths, is not hidden)."""
+    height, width = previous_depth.shape
+    position = previous_uv * (width, height) - 0.5
+    low = np.floor(position).astype(int)
+    farthest = np.zeros(distance.shape)
+    for dx in (0, 1):
+        for dy in (0, 1):
+            column = np.clip(low[..., 0] + dx, 0, width - 1)
+            row = height - 1 - np.clip(low[..., 1] + dy, 0, height - 1)
+            farthest = np.maximum(farthest, previous_depth[row, column])
+    return farthest < distance * (1.0 - HIDDEN_DEPTH_TOLERANCE)
 
 
 def moving_view_settings(settings):
@@ -122,7 +147,7 @@ class NavigatedViews:
         if pool is not None:
             self.state.pool = pool
         self._views = 0
-        self._size = None  # of the last view
+        self._last_view = None  # (depth, world-to-view) of the last view
 
     def forget(self):
         self.state.reset_history()
@@ -130,17 +155,18 @@ class NavigatedViews:
     def view(self, passes, inputs_timer=None, follow=True):
         """Start a ProgressiveView of PASSES (a capture with no motion of its own) after the views
         before: FOLLOW, from their history; otherwise as a still, whose history the next view follows."""
-        state = self.state
-        if not follow or passes.size != self._size:  # a history of another size reprojects nowhere
+        state, last_view = self.state, self._last_view
+        # A history of another size reprojects nowhere.
+        if not follow or last_view is None or last_view[0].shape != passes.depth.shape:
             self.forget()
         elif state.previous_world_to_clip is not None:
             motion, shared = camera_motion(passes.depth, passes.view_matrix, passes.projection_matrix,
-                                           state.previous_world_to_clip)
+                                           state.previous_world_to_clip, *last_view)
             passes = replace(passes, motion=motion)
             if shared < self.MIN_SHARED_VIEW:
                 self.forget()
         state.begin_frame(self._views)  # the first view draws a still's own rays (ProgressiveView)
         self._views += 1
-        self._size = passes.size
+        self._last_view = (passes.depth, passes.view_matrix)
         settings = moving_view_settings(self.settings) if follow else self.settings
         return ProgressiveView(passes, settings, inputs_timer=inputs_timer, state=state)

@@ -11,7 +11,7 @@ MAX_PYRAMID_LEVELS = 16
 # params.ray_sampling: the code of each ChainSettings.ray_sampling.
 RAY_SAMPLING_CODES = {"halton": 0, "random": 1, "uniform": 2}
 # params.history_mode: what the temporal filter's history is (chain.FrameRun).
-HISTORY_MODES = {"none": 0, "animation": 1, "still": 2}
+HISTORY_MODES = {"none": 0, "animation": 1, "still": 2, "view": 3}
 # What one cell visit of the Hi-Z march did (hiz_march_lib.glsl's recording hook).
 HIZ_VISITS = {"skip": 1, "descend": 2, "behind": 3, "hit": 4}
 # What became of each traced ray (ray_stats_img.w, the "Resolved By" debug view): which level of
@@ -65,7 +65,8 @@ PARAMS_FIELDS = (
     ("int", "use_firefly_guard", "resolve in tone-mapped space, c / (1 + max(c) / iterations averaged)"),
     ("float", "denoise_radius", "spatial filter radius in pixels at roughness max_roughness"),
     ("int", "reproject_hit", "temporal filter reprojects the hit point (1) or the surface (0)"),
-    ("int", "history_mode", "HISTORY_MODE_*: none, an animation's (clipped), a still's own iterations (unclipped)"),
+    ("int", "history_mode", "HISTORY_MODE_*: none, an animation's (clipped), a still's own iterations (unclipped), "
+                                "a view moved over a still scene (clipped where the last view did not see it)"),
     ("float", "history_frames", "most frames a moving pixel averages"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),

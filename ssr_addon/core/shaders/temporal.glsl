@@ -38,7 +38,16 @@
  * disocclusion, a moving reflection) the box is as tight as before. Recording the
  * motion in the history catches what a still pixel cannot show by itself: the
  * floor a moving ball uncovers, the reflection of the place the ball left. A
- * still's own iterations (HISTORY_MODE_STILL) share one camera and scene.
+ * still's own iterations (HISTORY_MODE_STILL) share one camera and scene. A view
+ * moved over a still scene (HISTORY_MODE_VIEW: the live view while the artist
+ * navigates) has no stale light, but what screen space shows changes as the view
+ * moves: content sweeps over the screen's edge and behind what is in front, and a
+ * lagging history kept that (an orbit at 1 degree a view, unclipped, came out
+ * worse than no history on the wet street's last views). Where the surface and its
+ * hit moved by under a pixel (VIEW_STEADY_PX) and the last view saw both, that
+ * change is under a pixel too: the history keeps averaging unclipped, so a slowly
+ * moving view settles instead of boiling with one iteration's noise. Elsewhere it
+ * is clipped as an animation's.
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
@@ -48,6 +57,9 @@
 /* Largest change of the light at a hit between frames that still counts as the same light:
  * EEVEE renders an unchanged scene the same every frame, Cycles with its seed animated does not. */
 #define RADIANCE_TOLERANCE 0.05
+/* A view moved over a still scene by less than this here (camera_motion marks what the last view
+ * did not see with a motion far larger): what the screen shows changed by less than a pixel. */
+#define VIEW_STEADY_PX 1.0
 
 /* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
 vec2 previous_screen_position(vec3 view_point)
@@ -173,8 +185,11 @@ void main()
   bool captures_moved = params.captures_changed != 0 && hit.w > 0.0;
   bool holds_still = params.history_mode == HISTORY_MODE_STILL ||
                      (camera_held_it && max(motion, history_record.w) < 0.01 && !captures_moved);
+  /* Only the view moved, by under a pixel at the surface and its hit, both of which the last view
+   * saw: the reprojected history saw the same light, so it keeps averaging, unclipped. */
+  bool view_steady = params.history_mode == HISTORY_MODE_VIEW && motion < VIEW_STEADY_PX;
   vec4 history_moments = textureLod(history_moments_tx, previous_uv, 0.0);
-  if (!holds_still) {
+  if (!holds_still && !view_steady) {
     bool same_reflection = hit.x > 0.0 && distance(history_moments.yzw, virtual_point) <
                                               SAME_REFLECTION_PX * pixel_footprint(-view_virtual_point.z);
     float history_luminance = luminance(history.rgb);
