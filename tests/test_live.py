@@ -71,6 +71,11 @@ def test_bad_preview_arguments_get_one_line(tmp_path):
                      check=False)
     assert result.returncode == 2 and not (tmp_path / "orbit").exists()
     assert result.stderr.strip().splitlines() == ["error: --orbit must be 0 or more views, got -2"]
+    result = run_cli("preview", os.path.join(SCENES, "mirror_floor.py"), "--out", tmp_path / "step", "--orbit", "2",
+                     "--orbit-step", "0", check=False)
+    assert result.returncode == 2 and not (tmp_path / "step").exists()
+    assert result.stderr.strip().splitlines() == ["error: --orbit-step must be more than 0 and at most 180 degrees, "
+                                                  "got 0"]
 
 
 @pytest.fixture(scope="module")

@@ -269,8 +269,8 @@ DENOISE_SPATIAL = GPUPass(
     runs=lambda frame: frame.settings.use_spatial_filter, skipped=(("spatial", "resolved"),))
 TEMPORAL = GPUPass(
     "temporal", "temporal.glsl", stage="temporal",
-    samplers=("spatial_tx", "reflection_hit_tx", "depth_tx", "motion_tx", "radiance_tx", "previous_radiance_tx",
-              "history_tx", "history_record_tx", "history_moments_tx"),
+    samplers=("spatial_tx", "reflection_hit_tx", "depth_tx", "normal_tx", "roughness_tx", "motion_tx",
+              "radiance_tx", "previous_radiance_tx", "history_tx", "history_record_tx", "history_moments_tx"),
     outputs=(Output("reflection_img", history="history_tx", layers=(
                  Layer("SSR Reflection", "RGB", view=DebugView("REFLECTION", "Reflection",
                                                                "Reflected radiance alone")),

@@ -5,7 +5,7 @@
  *   x_prev = P_{t-1} V_{t-1} x_world.
  *
  * Inputs:  spatial_tx (this frame's, spatially filtered, premultiplied), reflection_hit_tx
- *          (mean hit distance and uv, the captures' share), depth_tx, motion_tx (Vector pass: pixels to the previous frame),
+ *          (mean hit distance and uv, the captures' share), depth_tx, normal_tx, roughness_tx, motion_tx (Vector pass: pixels to the previous frame),
  *          radiance_tx and previous_radiance_tx (the lit scene now and in the history's frame),
  *          history_tx (last output: premultiplied radiance, confidence), history_record_tx (its record),
  *          history_moments_tx (its moments).
@@ -45,9 +45,13 @@
  * lagging history kept that (an orbit at 1 degree a view, unclipped, came out
  * worse than no history on the wet street's last views). Where the surface and its
  * hit moved by under a pixel (VIEW_STEADY_PX) and the last view saw both, that
- * change is under a pixel too: the history keeps averaging unclipped, so a slowly
- * moving view settles instead of boiling with one iteration's noise. Elsewhere it
- * is clipped as an animation's.
+ * change is under a pixel too: on a flat reflector, where hit-point reprojection is
+ * exact, rougher than a mirror (mirror_roughness), the history keeps averaging
+ * unclipped, so a slowly moving view settles instead of boiling with one
+ * iteration's noise. Elsewhere it is clipped as an animation's: a mirror's one
+ * iteration is near converged, and the clip keeps its reflection sharp where an
+ * unclipped history blurs with each bilinear reprojection (rolling_ball's floor
+ * came out brighter than no history); a ball's reflection smeared unclipped.
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
@@ -60,6 +64,8 @@
 /* A view moved over a still scene by less than this here (camera_motion marks what the last view
  * did not see with a motion far larger): what the screen shows changed by less than a pixel. */
 #define VIEW_STEADY_PX 1.0
+/* Neighbouring normals at least this close (cosine; 1.8 degrees) make a flat reflector. */
+#define FLAT_COSINE 0.9995
 
 /* Where a view-space point of this frame was on screen in the previous frame (uv), or -1. */
 vec2 previous_screen_position(vec3 view_point)
@@ -125,6 +131,22 @@ vec4 variance_clip(ivec2 pixel, vec4 history, float history_noise)
   return vec4(clamp(radiance, lower.rgb, upper.rgb), confidence);
 }
 
+/* The reflector is flat around PIXEL (its four neighbours' normals agree with its own), where
+ * hit-point reprojection is exact: a planar mirror's virtual image. On a curved one (a ball) it
+ * is an approximation that only the clip corrects. */
+bool flat_reflector(ivec2 pixel)
+{
+  vec3 normal = texelFetch(normal_tx, pixel, 0).xyz;
+  const ivec2 offsets[4] = ivec2[4](ivec2(1, 0), ivec2(-1, 0), ivec2(0, 1), ivec2(0, -1));
+  for (int index = 0; index < 4; index++) {
+    ivec2 neighbour = clamp(pixel + offsets[index], ivec2(0), ivec2(params.viewport_size) - 1);
+    if (!(dot(texelFetch(normal_tx, neighbour, 0).xyz, normal) >= FLAT_COSINE)) {
+      return false;
+    }
+  }
+  return true;
+}
+
 /* Screen motion in pixels at the pixel or its hit, the larger (0 where nothing moves). */
 float motion_seen(ivec2 pixel, vec4 hit)
 {
@@ -185,9 +207,10 @@ void main()
   bool captures_moved = params.captures_changed != 0 && hit.w > 0.0;
   bool holds_still = params.history_mode == HISTORY_MODE_STILL ||
                      (camera_held_it && max(motion, history_record.w) < 0.01 && !captures_moved);
-  /* Only the view moved, by under a pixel at the surface and its hit, both of which the last view
-   * saw: the reprojected history saw the same light, so it keeps averaging, unclipped. */
-  bool view_steady = params.history_mode == HISTORY_MODE_VIEW && motion < VIEW_STEADY_PX;
+  /* Only the view moved, by under a pixel at a flat glossy reflector and its hit, both of which
+   * the last view saw: the reprojected history saw the same light, so it keeps averaging, unclipped. */
+  bool view_steady = params.history_mode == HISTORY_MODE_VIEW && motion < VIEW_STEADY_PX &&
+                     texelFetch(roughness_tx, pixel, 0).r > params.mirror_roughness && flat_reflector(pixel);
   vec4 history_moments = textureLod(history_moments_tx, previous_uv, 0.0);
   if (!holds_still && !view_steady) {
     bool same_reflection = hit.x > 0.0 && distance(history_moments.yzw, virtual_point) <
