@@ -68,7 +68,8 @@ PARAMS_FIELDS = (
     ("float", "denoise_radius", "spatial filter radius in pixels at roughness max_roughness"),
     ("int", "reproject_hit", "temporal filter reprojects the hit point (1) or the surface (0)"),
     ("int", "history_mode", "HISTORY_MODE_*: none, an animation's (clipped), a still's own iterations (unclipped), "
-                                "a view moved over a still scene (clipped where the last view did not see it)"),
+                            "a view moved over a still scene (unclipped where a flat glossy reflector moved under "
+                            "a pixel)"),
     ("float", "history_frames", "most frames a moving pixel averages"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "hiz_level", "min-depth pyramid atlas: x, y offset, width, height"),
     (f"vec4[{MAX_PYRAMID_LEVELS}]", "color_level", "colour pyramid atlas, likewise"),
