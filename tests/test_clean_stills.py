@@ -25,13 +25,14 @@ MARGIN_PX = 2  # pixels within this distance of an edge of the mirror image are 
 TOLERANCE = 0.05  # per channel, against box contrasts of 0.5 and more
 
 
-def mirror_scene(roughness, colours=COLOURS):
-    projection = perspective(WIDTH, HEIGHT)
-    depth, normal = raycast(WIDTH, HEIGHT, projection, BOXES, floor_y=FLOOR_Y)
-    rays = pixel_rays(WIDTH, HEIGHT, projection)
+def mirror_scene(roughness, colours=COLOURS, size=(WIDTH, HEIGHT)):
+    width, height = size
+    projection = perspective(width, height)
+    depth, normal = raycast(width, height, projection, BOXES, floor_y=FLOOR_Y)
+    rays = pixel_rays(width, height, projection)
     floor = np.isclose(normal[..., 1], 1.0) & (depth < CLIP_END)
     _, box_seen, _ = intersect_boxes(np.zeros_like(rays), rays, BOXES, depth.astype(np.float64) + 1e-3)
-    radiance = np.zeros((HEIGHT, WIDTH, 4), np.float32)
+    radiance = np.zeros((height, width, 4), np.float32)
     radiance[box_seen >= 0, :3] = colours[box_seen[box_seen >= 0]]
     surface_roughness = np.where(floor, roughness, 1.0).astype(np.float32)
     return projection, depth, normal, rays, floor, radiance, surface_roughness

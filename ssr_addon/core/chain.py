@@ -134,7 +134,6 @@ def chain_params(frame, iteration, history_mode, previous_world_to_clip):
         "clip_start": inputs.clip_start, "clip_end": inputs.clip_end,
         "expensive_roughness": inputs.ray_budget[0], "expensive_tie_fraction": inputs.ray_budget[1],
         "sharp_roughness": settings.sharp_roughness if gpu_passes.TRACE_SHARP.runs(frame) else -1.0,
-        "mirror_roughness": settings.sharp_roughness,
         "hiz_levels": len(hiz_rects) if settings.use_hiz else 0, "hiz_max_iterations": settings.hiz_max_iterations,
         "thickness": settings.thickness, "max_distance": settings.max_distance,
         "trace_stride": settings.trace_stride, "trace_steps": settings.trace_steps,

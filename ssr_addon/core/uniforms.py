@@ -47,8 +47,6 @@ PARAMS_FIELDS = (
     ("float", "expensive_tie_fraction", "share of pixels at exactly that roughness that do"),
     ("float", "sharp_roughness", "pixels at most this rough trace a ray of their own every iteration (trace_sharp); "
                                  "-1: none does"),
-    ("float", "mirror_roughness", "pixels at most this rough (sharp_roughness, traced sharp or not) are near "
-                                  "converged after one iteration: a moving view keeps clipping their history"),
     ("int", "hiz_levels", "levels in the min-depth pyramid (0: no Hi-Z tracing)"),
     ("int", "hiz_max_iterations", "most cell visits per Hi-Z ray"),
     ("float", "thickness", "assumed depth of every surface, scene units"),

@@ -46,7 +46,7 @@
  * worse than no history on the wet street's last views). Where the surface and its
  * hit moved by under a pixel (VIEW_STEADY_PX) and the last view saw both, that
  * change is under a pixel too: on a flat reflector, where hit-point reprojection is
- * exact, rougher than a mirror (mirror_roughness), the history keeps averaging
+ * exact, rougher than a mirror (MIRROR_ROUGHNESS), the history keeps averaging
  * unclipped, so a slowly moving view settles instead of boiling with one
  * iteration's noise. Elsewhere it is clipped as an animation's: a mirror's one
  * iteration is near converged, and the clip keeps its reflection sharp where an
@@ -55,6 +55,9 @@
  * Non-finite history or input is dropped, never blended. */
 
 #define VARIANCE_CLIP_GAMMA 1.25
+/* Surfaces at most this rough are near converged after one iteration: their reflection is
+ * sharp enough that each bilinear reprojection of an unclipped history blurs it. */
+#define MIRROR_ROUGHNESS 0.1
 /* Hit-point reprojection reads the history within half a pixel of a planar mirror's image
  * (test_frame_sequence); a virtual image a footprint away is another reflected point. */
 #define SAME_REFLECTION_PX 1.0
@@ -210,7 +213,7 @@ void main()
   /* Only the view moved, by under a pixel at a flat glossy reflector and its hit, both of which
    * the last view saw: the reprojected history saw the same light, so it keeps averaging, unclipped. */
   bool view_steady = params.history_mode == HISTORY_MODE_VIEW && motion < VIEW_STEADY_PX &&
-                     texelFetch(roughness_tx, pixel, 0).r > params.mirror_roughness && flat_reflector(pixel);
+                     texelFetch(roughness_tx, pixel, 0).r > MIRROR_ROUGHNESS && flat_reflector(pixel);
   vec4 history_moments = textureLod(history_moments_tx, previous_uv, 0.0);
   if (!holds_still && !view_steady) {
     bool same_reflection = hit.x > 0.0 && distance(history_moments.yzw, virtual_point) <
