@@ -52,7 +52,7 @@ class ChainSettings:
              "(more where sharp_roughness asks)",
         0.0, 1.0)
     sharp_roughness: float = _setting(
-        0.2, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
+        0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
              "coarse steps show as stair-steps in a sharp reflection", 0.0, 1.0)
     use_sharp_rays: bool = _setting(
         True, "With half-resolution tracing, surfaces at most sharp_roughness rough also trace a full-resolution "
