@@ -216,14 +216,17 @@ def orbit_quality(scene, folder, settings, resolution, views, step_degrees=ORBIT
     error on the reflective pixels (relative L1) against a converged still of that view, of the
     moving view, of one iteration of its own one-sample passes without history (traced as a moving
     view is: progressive.moving_view_settings) and of EEVEE's image without SSR; and the orbit's
-    flicker of each of the three (orbit_flicker). Returns (timings, rows, {name: flicker}), the
-    names "moving", "without_history" and "without_ssr"."""
-    rows, errors = [], []
+    flicker of each of the three (orbit_flicker). The stills are captured once the orbit is done
+    (run_preview's after_orbit), so that the moving views are drawn as an artist's are. Returns
+    (timings, rows, {name: flicker}), the names "moving", "without_history" and "without_ssr"."""
+    rows, errors, shown = [], [], {}
 
-    def measure(index, passes, outputs, recapture):
-        moving = download(outputs["final"])[..., :3]
+    def show(index, passes, outputs):
         alone = ProgressiveView(passes, moving_view_settings(settings)).step(max_iterations=1)
-        alone = download(alone["final"])[..., :3]
+        shown[index] = {"moving": download(outputs["final"])[..., :3],
+                        "without_history": download(alone["final"])[..., :3]}
+
+    def measure(index, recapture):
         still_passes = recapture()
         still = ProgressiveView(still_passes, settings)
         while not still.done:
@@ -231,15 +234,15 @@ def orbit_quality(scene, folder, settings, resolution, views, step_degrees=ORBIT
         reference = download(still.outputs["final"])[..., :3]
         mask = reflective_mask(still_passes)
         level = np.abs(reference[mask]).sum()
-        shown = {"moving": moving, "without_history": alone, "without_ssr": still_passes.combined[..., :3]}
+        images = {**shown.pop(index), "without_ssr": still_passes.combined[..., :3]}
         rows.append({"view": index, **{name: float(np.abs(image - reference)[mask].sum() / level)
-                                       for name, image in shown.items()},
+                                       for name, image in images.items()},
                      "still_iterations": still.iterations})
-        errors.append(({name: image - reference for name, image in shown.items()}, mask,
+        errors.append(({name: image - reference for name, image in images.items()}, mask,
                        float(reference[mask].mean())))
 
-    timings = run_preview(scene, folder, settings, resolution, orbit=views, log=lambda line: None, on_view=measure,
-                          orbit_step=step_degrees)
+    timings = run_preview(scene, folder, settings, resolution, orbit=views, log=lambda line: None, on_view=show,
+                          orbit_step=step_degrees, after_orbit=measure)
     return timings, rows, {name: orbit_flicker(errors, name) for name in ("moving", "without_history", "without_ssr")}
 
 

@@ -142,7 +142,7 @@ def test_the_live_view_mirrors_the_hidden_underside_held_and_moving(gpu_backend,
     scene = load_scene(os.path.join(SCENES, "hidden_underside.py"))
     moving = {}
 
-    def on_view(index, passes, outputs, recapture):
+    def on_view(index, passes, outputs):
         moving[index] = ((passes.view_matrix, passes.projection_matrix), download(outputs["final"])[..., :3],
                          passes.capture)
 

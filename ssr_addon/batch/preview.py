@@ -44,11 +44,14 @@ ORBIT_SAMPLES = 1         # viewport samples of an orbit view's capture, as the 
 
 
 def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbit=0, log=print, on_view=None,
-                orbit_step=ORBIT_STEP_DEGREES):
+                orbit_step=ORBIT_STEP_DEGREES, after_orbit=None):
     """Capture SCENE's camera view at RESOLUTION (default: the scene's) and refine it until it
     converges or has run ITERATIONS; then ORBIT views around it; write the images and timings into
-    OUT_DIR; returns the timings. ON_VIEW(k, passes, ChainOutputs, recapture), if given, sees each
-    orbit view (k from 1); recapture(samples) captures the view again at SAMPLES (None: the scene's)."""
+    OUT_DIR; returns the timings. ON_VIEW(k, passes, ChainOutputs), if given, sees each orbit view
+    (k from 1) as it is shown. AFTER_ORBIT(k, recapture), if given, is called for each orbit view once
+    the orbit is done: recapture(samples) captures that view again at SAMPLES (None: the scene's).
+    Only then, since EEVEE's viewport draws a view at one sample differently after a full-sample
+    draw of the last one than a moving view, after one-sample draws, is drawn."""
     camera = require_camera(scene)
     size = render_size(scene, resolution)
     prepare_output_folder(out_dir)
@@ -101,8 +104,9 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
                     orbit_views.append(_orbit_view(
                         capture, views, index, out_dir, on_view,
                         lambda timer, orbit_view=orbit_view: keep_view_captures(
-                            view_passes(orbit_view, ORBIT_SAMPLES, timer), passes),
-                        lambda samples=None, orbit_view=orbit_view: capture_view(orbit_view, samples)))
+                            view_passes(orbit_view, ORBIT_SAMPLES, timer), passes)))
+                for index, orbit_view in enumerate(orbit_matrices if after_orbit else (), 1):
+                    after_orbit(index, lambda samples=None, orbit_view=orbit_view: capture_view(orbit_view, samples))
                 for index in range(1, orbit + 1):
                     exr, png = _orbit_paths(out_dir, index)
                     with written_together([png]) as (partial,):
@@ -141,10 +145,9 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
     return timings
 
 
-def _orbit_view(capture, views, index, out_dir, on_view, moving_passes, capture_view):
+def _orbit_view(capture, views, index, out_dir, on_view, moving_passes):
     """Capture and show orbit view INDEX as the live view follows a moving view: MOVING_PASSES(timer)
-    captures it as the live view does while moving; write its EXR and return its timings.
-    CAPTURE_VIEW(samples) captures it with captures of its own (ON_VIEW's recapture)."""
+    captures it as the live view does while moving; write its EXR and return its timings."""
     started = time.perf_counter()
     timer = StageTimer()
     draws = capture.draws
@@ -154,7 +157,7 @@ def _orbit_view(capture, views, index, out_dir, on_view, moving_passes, capture_
     image = download(outputs["final"])
     time_to_image_ms = (time.perf_counter() - started) * 1000.0
     if on_view is not None:
-        on_view(index, passes, outputs, capture_view)
+        on_view(index, passes, outputs)
     with written_together(_orbit_paths(out_dir, index)[:1]) as (exr,):
         write_rgba_exr(exr, image)
     return {"view": index, "time_to_image_ms": round(time_to_image_ms, 1),
