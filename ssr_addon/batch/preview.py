@@ -50,8 +50,9 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
     OUT_DIR; returns the timings. ON_VIEW(k, passes, ChainOutputs), if given, sees each orbit view
     (k from 1) as it is shown. AFTER_ORBIT(k, recapture), if given, is called for each orbit view once
     the orbit is done: recapture(samples) captures that view again at SAMPLES (None: the scene's).
-    Only then, since EEVEE's viewport draws a view at one sample differently after a full-sample
-    draw of the last one than a moving view, after one-sample draws, is drawn."""
+    It waits for the orbit's end because a full-sample draw changes how EEVEE's viewport draws the
+    next view at one sample: the orbit's views are drawn after one-sample draws only, as an
+    artist's are."""
     camera = require_camera(scene)
     size = render_size(scene, resolution)
     prepare_output_folder(out_dir)
@@ -105,8 +106,10 @@ def run_preview(scene, out_dir, settings, resolution=None, iterations=None, orbi
                         capture, views, index, out_dir, on_view,
                         lambda timer, orbit_view=orbit_view: keep_view_captures(
                             view_passes(orbit_view, ORBIT_SAMPLES, timer), passes)))
-                for index, orbit_view in enumerate(orbit_matrices if after_orbit else (), 1):
-                    after_orbit(index, lambda samples=None, orbit_view=orbit_view: capture_view(orbit_view, samples))
+                if after_orbit is not None:
+                    for index, orbit_view in enumerate(orbit_matrices, 1):
+                        after_orbit(index, lambda samples=None, orbit_view=orbit_view:
+                                    capture_view(orbit_view, samples))
                 for index in range(1, orbit + 1):
                     exr, png = _orbit_paths(out_dir, index)
                     with written_together([png]) as (partial,):
