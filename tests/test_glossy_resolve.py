@@ -84,11 +84,12 @@ def test_a_nearly_smooth_floor_settles_to_its_own_lobe_at_a_low_resolution(gpu_b
     """At 160x90 a traced texel turns a 0.15-rough floor's ray further than its lobe is wide.
     The ratio estimator normalises each iteration's weights, so rays reused from beside the lobe
     still weigh in full, and a still averaging such iterations settles on their blur of the
-    reflection, unless the floor's own sharp rays (sharp_roughness raised to take it) stand
-    there. A still stops once a doubling of its iterations moves it by under noise_threshold,
-    so it may lie that far from the lobe integral, and as far again from the pixel grid it reads
-    the boxes from (a quarter of the floor's pixels border one); the chain taking its own ray
-    only where the reused rays weighed less than one was 4.3 % off."""
+    reflection, unless the floor's own sharp rays (sharp_roughness 0.2 takes it) weigh in
+    with them by the share of the lobe each covers (the balance heuristic over their pdfs).
+    A still stops once a doubling of its iterations moves it by under noise_threshold, so it may
+    lie that far from the lobe integral, and as far again from the pixel grid it reads the boxes
+    from (a quarter of the floor's pixels border one); reuse alone was 5.3 % off, the chain taking
+    its own ray only where the reused rays weighed less than one 4.3 %."""
     balanced = preset("balanced").with_overrides(["border_fade=0", "sharp_roughness=0.2"])
     error, scale = settled_error(balanced, roughness=0.15, size=(160, 90))
     assert error <= 2 * balanced.noise_threshold * scale, \

@@ -52,7 +52,7 @@ class ChainSettings:
              "(more where sharp_roughness asks)",
         0.0, 1.0)
     sharp_roughness: float = _setting(
-        0.1, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
+        0.2, "Surfaces at most this rough always get expensive Hi-Z rays, whatever the budget: a cheap ray's "
              "coarse steps show as stair-steps in a sharp reflection", 0.0, 1.0)
     use_sharp_rays: bool = _setting(
         True, "With half-resolution tracing, surfaces at most sharp_roughness rough also trace a full-resolution "
@@ -123,7 +123,7 @@ class ChainSettings:
     max_roughness: float = _setting(
         0.5, "Surfaces rougher than this keep their probe/world reflection", 0.0, 1.0, group="fading")
     border_fade: float = _setting(
-        0.08, "Fade hits within this fraction of the screen from where their ray leaves it", 0.0, 0.5,
+        0.04, "Fade hits within this fraction of the screen from where their ray leaves it", 0.0, 0.5,
         group="fading")
     camera_facing_fade: float = _setting(
         0.5, "Fade rays that point back towards the camera (0: never fade)", 0.0, 1.0, group="fading")

@@ -14,23 +14,25 @@
  *          reflection_hit_img = (mean hit distance, mean hit uv of the screen's hits, weighted as the
  *                               radiance; the captures' share of the reflection).
  *
- * A pixel at most sharp_roughness rough traced a ray of its own this iteration. Where the rays
- * it would reuse leave part of its lobe uncovered, its own ray alone is the estimate, hit or
- * miss: the ratio estimator normalises each iteration's weights, so rays from beside a narrow
- * lobe (a curved mirror's turned normals; a floor's neighbours at a low resolution, where a
- * texel turns the ray further than a 0.12-rough lobe is wide) still weigh in full, and a still
- * averaging such iterations settles on their blur of the reflection. Each ray drawn from a
- * lobe weighs its Smith masking, about one, so reused rays that weigh less between them than
- * REUSE_COVERAGE of as many rays of its own miss part of it. With captures, its own ray stands
- * only where it found its hit on screen unfaded and no capture took the nearest traced ray:
- * the captures trace only the traced rays (its own hit may be one the camera does not see).
- * Otherwise the reused rays are its estimate, as for every other pixel.
- * Every other pixel reuses the rays of its own and neighbouring traced texels with the
+ * Each pixel reuses the rays of its own and neighbouring traced texels with the
  * ratio estimator  L = sum(L_k f_s(l_k) cos / p_k) / sum(f_s(l_k) cos / p_k),
  * where l_k runs from this pixel to ray k's hit and p_k is the pdf ray k was
  * drawn with. The FG factor is applied by the composite. Rays that missed
  * count in the denominator only through the confidence: confidence is the
  * share of the BRDF weight whose rays found a trustworthy hit.
+ *
+ * A pixel at most sharp_roughness rough traced a ray of its own this iteration, drawn from its own
+ * lobe, and weighs it with the rays it reuses by the balance heuristic of multiple importance
+ * sampling (Veach 1997): every ray counts as drawn from all of their lobes at once, with pdf
+ * sum_j p_j(l), each lobe seen from the pixel its ray left. Rays from beside a narrow lobe (a curved
+ * mirror's turned normals; a floor's neighbours at a low resolution, where a texel turns the ray
+ * further than a 0.12-rough lobe is wide) then weigh as little as they cover of it, where alone
+ * the ratio estimator would normalise them to full weight and a still would settle on their
+ * blur; where the lobes overlap all of them share the estimate, with less noise than its own ray
+ * alone (a 0.15-rough floor settles 3.2 % off its lobe integral at 160x90 and 1.0 % at 640x360;
+ * reusing alone, 5.3 % at 160x90). With captures, its own ray counts only where it found its hit on screen unfaded and no
+ * capture took the nearest traced ray: the captures trace only the traced rays (its own hit may be
+ * one the camera does not see).
  *
  * Firefly guard (params.use_firefly_guard; Karis 2014, EEVEE's denoiser): the
  * hits' colours are averaged tone-mapped, c / (1 + s max(c)), and mapped back, so
@@ -41,13 +43,6 @@
 /* Neighbours whose ray left a surface turned further than this from this pixel's (78 degrees:
  * another surface, a wall beside the floor, not the curve of this one) are not reused. */
 #define SAME_SURFACE_COS 0.2
-
-/* Reused rays that weigh less than this share of as many rays drawn from the pixel's own lobe
- * leave part of it uncovered (see above): at three quarters, a 0.15-rough floor at 160x90
- * settles 3.1 % off its lobe integral (reusing: 5.3 %; its own ray only where the reused ones
- * weigh under one: 4.3 %), and at 640x360, where reuse covers the lobe, 1.4 % (its own ray
- * alone: 2.7 %). */
-#define REUSE_COVERAGE 0.75
 
 vec3 tonemap(vec3 color, float strength)
 {
@@ -93,13 +88,39 @@ struct RayEstimate {
   vec2 hit_uv;          /* sum of screen hit weight * hit uv */
 };
 
-#define REUSED_RAYS 0
-#define OWN_RAY 1
+/* The lobe a ray was drawn from: the surface of the pixel it left, in view space. */
+struct Lobe {
+  vec3 origin;
+  vec3 normal;
+  vec3 to_eye;
+  float alpha;
+};
 
-RayEstimate no_estimate()
+Lobe lobe_at(ivec2 pixel)
 {
-  return RayEstimate(vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, vec2(0.0));
+  vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
+  return Lobe(view_position(uv, texelFetch(depth_tx, pixel, 0).r), view_normal(texelFetch(normal_tx, pixel, 0).xyz), -view_incident(uv),
+              ggx_alpha(texelFetch(roughness_tx, pixel, 0).r));
 }
+
+/* The density with which trace.glsl draws a ray from LOBE in direction L. */
+float ray_pdf(Lobe lobe, vec3 l)
+{
+  if (params.use_importance_sampling == 0) {
+    return 1.0; /* mirror rays: trace.glsl's constant */
+  }
+  if (dot(lobe.normal, l) <= 0.0) {
+    return 0.0;
+  }
+  if (params.ray_sampling == RAY_SAMPLING_UNIFORM) {
+    return 1.0 / (2.0 * M_PI * (1.0 - LOBE_TAIL));
+  }
+  float n_dot_h = max(dot(lobe.normal, normalize(lobe.to_eye + l)), 0.0);
+  return visible_normal_pdf(max(dot(lobe.normal, lobe.to_eye), 1e-4), n_dot_h, lobe.alpha);
+}
+
+/* Its own ray and at most 9 reused ones. */
+#define MAX_RAYS 10
 
 void main()
 {
@@ -138,57 +159,76 @@ void main()
   float guard = params.use_firefly_guard != 0 ? 1.0 / iterations : 0.0;
   float n_dot_v = dot(normal, to_eye);
 
-  /* The sums of the rays it reuses, and of its own ray. */
-  RayEstimate sums[2] = RayEstimate[2](no_estimate(), no_estimate());
+  /* The rays it weighs: its own first, where it has one, then those it reuses. */
+  ivec2 ray_texels[MAX_RAYS];
+  Lobe lobes[MAX_RAYS];
+  int rays = 0;
   for (int k = own_ray ? -1 : 0; k < ray_count; k++) {
-    bool is_own = k < 0; /* this pixel's own ray (trace_sharp) */
-    int set = is_own ? OWN_RAY : REUSED_RAYS;
     ivec2 texel = clamp(own_texel + NEIGHBOURS[max(k, 0)] * side, ivec2(0), trace_size - 1);
-    vec4 hit = is_own ? own_hit : texelFetch(ray_hit_tx, texel, 0);
-    if (!(hit.z > 0.0)) {
+    if (k >= 0 && !(texelFetch(ray_hit_tx, texel, 0).z > 0.0)) {
       continue; /* no ray was traced there (sky, rough or back-facing pixel) */
     }
+    Lobe lobe = lobe_at(k < 0 ? pixel : ray_origin_pixel(texel));
     /* A ray stands for this pixel's lobe only if it left the same surface: one from the wall
      * beside a floor pixel saw what the wall reflects (the floor, darkening the contact). */
-    vec3 origin_normal = texelFetch(normal_tx, ray_origin_pixel(texel), 0).xyz;
-    if (k > 0 && dot(view_normal(origin_normal), normal) < SAME_SURFACE_COS) {
+    if (k > 0 && dot(lobe.normal, normal) < SAME_SURFACE_COS) {
       continue;
     }
+    ray_texels[rays] = texel;
+    lobes[rays] = lobe;
+    rays++;
+  }
+
+  RayEstimate estimate = RayEstimate(vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, vec2(0.0));
+  for (int i = 0; i < rays; i++) {
+    bool is_own = own_ray && i == 0; /* this pixel's own ray (trace_sharp) */
+    ivec2 texel = ray_texels[i];
+    vec4 hit = is_own ? own_hit : texelFetch(ray_hit_tx, texel, 0);
     vec4 ray = is_own ? texelFetch(sharp_ray_dir_tx, pixel, 0) : texelFetch(ray_dir_tx, texel, 0);
     vec3 direction = ray.xyz;
     float hit_distance = 0.0;
+    vec3 hit_position = vec3(0.0);
     /* A capture's hit stands in for the screen's share it takes (planar_trace.glsl). */
     vec4 captured = params.capture_levels != 0 && !is_own ? texelFetch(capture_hit_tx, texel, 0) : vec4(0.0);
     float screen_share = min(hit.w, 1.0 - captured.a);
     if (screen_share > 0.0) {
       float hit_depth = texelFetch(depth_tx, texel_at(hit.xy * params.viewport_size), 0).r;
-      vec3 to_hit = view_position(hit.xy, hit_depth) - position;
+      hit_position = view_position(hit.xy, hit_depth);
+      vec3 to_hit = hit_position - position;
       hit_distance = length(to_hit);
       direction = to_hit / max(hit_distance, 1e-6);
     }
-    float weight = ggx_brdf_cos(normal, to_eye, direction, alpha) / hit.z;
-    sums[set].weight += weight;
+    /* With its own ray, every ray counts as drawn from all of their lobes (balance heuristic),
+     * each towards the hit from the pixel it left. */
+    float pdf = hit.z;
+    if (own_ray) {
+      pdf = 0.0;
+      for (int j = 0; j < rays; j++) {
+        vec3 from_lobe = screen_share > 0.0 ? normalize(hit_position - lobes[j].origin) : direction;
+        pdf += ray_pdf(lobes[j], from_lobe);
+      }
+    }
+    float weight = pdf > 0.0 ? ggx_brdf_cos(normal, to_eye, direction, alpha) / pdf : 0.0;
+    estimate.weight += weight;
     if (screen_share > 0.0 && weight > 0.0) {
       float hit_weight = weight * screen_share;
-      /* A ray stands for one of the rays of its set (own: one; reused: N) of every iteration the
-       * history averages here. */
-      float rays_averaged = is_own ? iterations : float(ray_count) * iterations;
-      vec3 radiance = hit_radiance(hit.xy, hit_distance, ray_solid_angle(hit.z, rays_averaged, n_dot_v, alpha));
-      sums[set].radiance += hit_weight * tonemap(radiance, guard);
-      sums[set].hit_weight += hit_weight;
-      sums[set].screen_weight += hit_weight;
-      sums[set].distance += hit_weight * hit_distance;
-      sums[set].hit_uv += hit_weight * hit.xy;
+      /* A ray stands for one of the rays drawn with its pdf (with its own ray, all of them: one
+       * per iteration) of every iteration the history averages here. */
+      float rays_averaged = own_ray ? iterations : float(ray_count) * iterations;
+      vec3 radiance = hit_radiance(hit.xy, hit_distance, ray_solid_angle(pdf, rays_averaged, n_dot_v, alpha));
+      estimate.radiance += hit_weight * tonemap(radiance, guard);
+      estimate.hit_weight += hit_weight;
+      estimate.screen_weight += hit_weight;
+      estimate.distance += hit_weight * hit_distance;
+      estimate.hit_uv += hit_weight * hit.xy;
     }
     if (captured.a > 0.0 && weight > 0.0) {
       float hit_weight = weight * captured.a;
-      sums[set].radiance += hit_weight * tonemap(captured.rgb, guard);
-      sums[set].hit_weight += hit_weight;
-      sums[set].capture_weight += hit_weight;
+      estimate.radiance += hit_weight * tonemap(captured.rgb, guard);
+      estimate.hit_weight += hit_weight;
+      estimate.capture_weight += hit_weight;
     }
   }
-  bool covered = sums[REUSED_RAYS].weight >= REUSE_COVERAGE * float(ray_count);
-  RayEstimate estimate = sums[own_ray && !covered ? OWN_RAY : REUSED_RAYS];
   /* Written so that NaN, should any reach here, counts as "no reflection". */
   if (!(estimate.hit_weight > 0.0 && estimate.weight > 0.0)) {
     return;
