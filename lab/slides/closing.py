@@ -74,10 +74,12 @@ def limits(context):
         "panel, so the floor in front of it cannot reflect that part: SSR leaves it to the world "
         "reflection (FLIP against Cycles {hidden_flip}, {hidden_fallback_flip} with no SSR at all). "
         "Pillars leave the top of the frame, and so do the rays of the floor pixels that reflect their "
-        "tops: cut off, the reflection ends in a hard line; faded out over the last {border_fade} of "
-        "the screen before the rays leave it, it hands over smoothly to the world reflection. The seam's "
-        "strength (the bench's stability measure: 0 a smooth fade, 1 a one-pixel cut) is {cutoff_seam} cut off and "
-        "{fading_seam} faded.")
+        "tops: cut off, the reflection ends in a hard line where they leave it; faded out over the last "
+        "{border_fade} of the screen before the rays leave it, it hands over gradually to the world "
+        "reflection. Here the floor's last rows reflect the pillars just below the frame's top, so the "
+        "cut falls about on the frame's bottom edge, and the fade costs the reflection its last rows: the "
+        "seam's strength (the bench's stability measure: 0 a smooth fade, 1 a one-pixel cut) is "
+        "{cutoff_seam} cut off and {fading_seam} faded.")
 
 
 # Each failure of screen space beside the level of the fallback hierarchy that fixes it:
