@@ -166,7 +166,7 @@ def history_weight(count):
 # --- the chain's passes, in the order of the slides -------------------------------------------------------------
 
 _TRACE_LIBRARIES = (*COMMON_LIBRARIES, "screen_ray_lib.glsl", "surface_ray_lib.glsl", "linear_march_lib.glsl",
-                    "hiz_march_lib.glsl", "ggx_lib.glsl")
+                    "hiz_march_lib.glsl", "ggx_lib.glsl", "ray_pdf_lib.glsl")
 # Where a pyramid level reads its source and draws itself (pyramids.build_pyramid).
 _PYRAMID_LEVEL = (("IVEC2", "source_offset"), ("IVEC2", "source_size"), ("IVEC2", "level_offset"))
 
@@ -256,7 +256,7 @@ RESOLVE = GPUPass(
               "roughness_tx", "color_tx", "history_record_tx", "capture_hit_tx"),
     outputs=(Output("resolved_img", size="resolve", layers=(Layer("SSR Resolve", "RGBA"),)),
              Output("reflection_hit_img", size="resolve")),
-    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "history_lib.glsl"))
+    libraries=(*COMMON_LIBRARIES, "ggx_lib.glsl", "ray_pdf_lib.glsl", "history_lib.glsl"))
 RESOLVE_UPSCALE = GPUPass("resolve_upscale", "resolve_upscale.glsl", stage="resolve",
                           samplers=("resolved_tx", "reflection_hit_tx"),
                           outputs=(Output("resolved_img"), Output("reflection_hit_img")), libraries=(),

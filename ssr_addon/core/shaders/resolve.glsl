@@ -30,9 +30,9 @@
  * the ratio estimator would normalise them to full weight and a still would settle on their
  * blur; where the lobes overlap all of them share the estimate, with less noise than its own ray
  * alone (a 0.15-rough floor settles 3.2 % off its lobe integral at 160x90 and 1.0 % at 640x360;
- * reusing alone, 5.3 % at 160x90). With captures, its own ray counts only where it found its hit on screen unfaded and no
- * capture took the nearest traced ray: the captures trace only the traced rays (its own hit may be
- * one the camera does not see).
+ * reusing alone, 5.3 % at 160x90). With captures, its own ray counts only where it found its hit
+ * on screen unfaded and no capture took the nearest traced ray: the captures trace only the
+ * traced rays (its own hit may be one the camera does not see).
  *
  * Firefly guard (params.use_firefly_guard; Karis 2014, EEVEE's denoiser): the
  * hits' colours are averaged tone-mapped, c / (1 + s max(c)), and mapped back, so
@@ -99,24 +99,9 @@ struct Lobe {
 Lobe lobe_at(ivec2 pixel)
 {
   vec2 uv = (vec2(pixel) + 0.5) * params.pixel_size;
-  return Lobe(view_position(uv, texelFetch(depth_tx, pixel, 0).r), view_normal(texelFetch(normal_tx, pixel, 0).xyz), -view_incident(uv),
+  return Lobe(view_position(uv, texelFetch(depth_tx, pixel, 0).r),
+              view_normal(texelFetch(normal_tx, pixel, 0).xyz), -view_incident(uv),
               ggx_alpha(texelFetch(roughness_tx, pixel, 0).r));
-}
-
-/* The density with which trace.glsl draws a ray from LOBE in direction L. */
-float ray_pdf(Lobe lobe, vec3 l)
-{
-  if (params.use_importance_sampling == 0) {
-    return 1.0; /* mirror rays: trace.glsl's constant */
-  }
-  if (dot(lobe.normal, l) <= 0.0) {
-    return 0.0;
-  }
-  if (params.ray_sampling == RAY_SAMPLING_UNIFORM) {
-    return 1.0 / (2.0 * M_PI * (1.0 - LOBE_TAIL));
-  }
-  float n_dot_h = max(dot(lobe.normal, normalize(lobe.to_eye + l)), 0.0);
-  return visible_normal_pdf(max(dot(lobe.normal, lobe.to_eye), 1e-4), n_dot_h, lobe.alpha);
 }
 
 /* Its own ray and at most 9 reused ones. */
@@ -161,22 +146,28 @@ void main()
 
   /* The rays it weighs: its own first, where it has one, then those it reuses. */
   ivec2 ray_texels[MAX_RAYS];
-  Lobe lobes[MAX_RAYS];
+  ivec2 ray_origins[MAX_RAYS];
   int rays = 0;
   for (int k = own_ray ? -1 : 0; k < ray_count; k++) {
     ivec2 texel = clamp(own_texel + NEIGHBOURS[max(k, 0)] * side, ivec2(0), trace_size - 1);
     if (k >= 0 && !(texelFetch(ray_hit_tx, texel, 0).z > 0.0)) {
       continue; /* no ray was traced there (sky, rough or back-facing pixel) */
     }
-    Lobe lobe = lobe_at(k < 0 ? pixel : ray_origin_pixel(texel));
+    ivec2 origin = k < 0 ? pixel : ray_origin_pixel(texel);
     /* A ray stands for this pixel's lobe only if it left the same surface: one from the wall
      * beside a floor pixel saw what the wall reflects (the floor, darkening the contact). */
-    if (k > 0 && dot(lobe.normal, normal) < SAME_SURFACE_COS) {
+    vec3 origin_normal = texelFetch(normal_tx, origin, 0).xyz;
+    if (k > 0 && dot(view_normal(origin_normal), normal) < SAME_SURFACE_COS) {
       continue;
     }
     ray_texels[rays] = texel;
-    lobes[rays] = lobe;
+    ray_origins[rays] = origin;
     rays++;
+  }
+  /* Only a pixel with its own ray weighs the rays by all of their lobes. */
+  Lobe lobes[MAX_RAYS];
+  for (int j = 0; own_ray && j < rays; j++) {
+    lobes[j] = lobe_at(ray_origins[j]);
   }
 
   RayEstimate estimate = RayEstimate(vec3(0.0), 0.0, 0.0, 0.0, 0.0, 0.0, vec2(0.0));
@@ -204,8 +195,12 @@ void main()
     if (own_ray) {
       pdf = 0.0;
       for (int j = 0; j < rays; j++) {
-        vec3 from_lobe = screen_share > 0.0 ? normalize(hit_position - lobes[j].origin) : direction;
-        pdf += ray_pdf(lobes[j], from_lobe);
+        Lobe lobe = lobes[j];
+        vec3 from_lobe = screen_share > 0.0 ? normalize(hit_position - lobe.origin) : direction;
+        /* An importance-sampled ray below its surface has no light (trace.glsl): no lobe sends a
+         * hit there. Mirror rays weigh by the BRDF alone. */
+        bool drawn = dot(lobe.normal, from_lobe) > 0.0 || params.use_importance_sampling == 0;
+        pdf += drawn ? ray_pdf(lobe.normal, lobe.to_eye, lobe.alpha, from_lobe) : 0.0;
       }
     }
     float weight = pdf > 0.0 ? ggx_brdf_cos(normal, to_eye, direction, alpha) / pdf : 0.0;

@@ -83,8 +83,7 @@ vec2 lobe_sample(ivec2 pixel)
 
 /* RAY_SAMPLING_UNIFORM, for comparison: a direction spread evenly over the hemisphere
  * around the normal, blind to the lobe ("Importance Sampling" slides). lobe_sample's
- * u.x < 1 - LOBE_TAIL leaves out the grazing band cos(theta) < LOBE_TAIL, so the pdf
- * is 1 / (2 pi (1 - LOBE_TAIL)). */
+ * u.x < 1 - LOBE_TAIL leaves out the grazing band cos(theta) < LOBE_TAIL (ray_pdf). */
 vec3 uniform_hemisphere(vec3 normal, vec2 u)
 {
   float cos_theta = 1.0 - u.x, sin_theta = sqrt(max(0.0, 1.0 - u.x * u.x));
@@ -112,26 +111,21 @@ void main()
   vec3 to_eye = -incident;
   float n_dot_v = dot(normal, to_eye);
 
+  float alpha = ggx_alpha(roughness);
   vec3 direction;
-  float pdf;
   if (params.use_importance_sampling != 0 && params.ray_sampling == RAY_SAMPLING_UNIFORM) {
     direction = uniform_hemisphere(normal, lobe_sample(pixel));
-    pdf = 1.0 / (2.0 * M_PI * (1.0 - LOBE_TAIL));
   }
   else if (params.use_importance_sampling != 0) {
-    float alpha = ggx_alpha(roughness);
     mat3 frame = tangent_frame(normal);
-    vec3 half_vector = frame * sample_visible_normal(transpose(frame) * to_eye, alpha,
-                                                     lobe_sample(pixel));
-    direction = reflect(incident, half_vector);
-    pdf = visible_normal_pdf(n_dot_v, max(dot(normal, half_vector), 0.0), alpha);
+    direction = reflect(incident, frame * sample_visible_normal(transpose(frame) * to_eye, alpha,
+                                                                lobe_sample(pixel)));
   }
   else {
     direction = reflect(incident, normal);
-    pdf = 1.0; /* mirror rays: a constant, so the resolve weights by the BRDF alone */
   }
   ray_dir_img.xyz = direction;
-  ray_hit_img.z = pdf;
+  ray_hit_img.z = ray_pdf(normal, to_eye, alpha, direction);
   if (dot(direction, normal) <= 0.0) {
     return; /* sampled below the surface: a ray with no light */
   }
