@@ -109,8 +109,6 @@ void main()
     return; /* too rough, or no ray from this pixel (surface_ray_lib.glsl) */
   }
   vec3 to_eye = -incident;
-  float n_dot_v = dot(normal, to_eye);
-
   float alpha = ggx_alpha(roughness);
   vec3 direction;
   if (params.use_importance_sampling != 0 && params.ray_sampling == RAY_SAMPLING_UNIFORM) {
