@@ -46,21 +46,26 @@ def raycast(width, height, projection, boxes, floor_y=None, far=100.0):
     return depth.astype(np.float32), normal.astype(np.float32)
 
 
-def seen_by_camera(points, projection, depth):
-    """Whether the camera (at the origin, PROJECTION, the DEPTH it rendered) sees each of
-    POINTS (..., 3, view space) itself, not something in front of it: on screen, and the
-    depth there within 5 % of the point's."""
-    height, width = depth.shape
+def camera_texel(points, projection, size):
+    """(row, column, on screen) of the texel (image order) the camera, PROJECTION over SIZE
+    (width, height) pixels, shows each of POINTS (..., 3, view space) in; row and column are 0
+    where it is off screen."""
+    width, height = size
     clip = points @ np.asarray(projection, np.float64)[:3, :3].T + projection[:3, 3]
     w = -points[..., 2]
     with np.errstate(divide="ignore", invalid="ignore"):
         column = np.floor((clip[..., 0] / w * 0.5 + 0.5) * width)
         row = np.floor((0.5 - clip[..., 1] / w * 0.5) * height)
     on_screen = (w > 0) & (column >= 0) & (column < width) & (row >= 0) & (row < height)
-    seen = np.zeros_like(on_screen)
-    row, column = row[on_screen].astype(int), column[on_screen].astype(int)
-    seen[on_screen] = np.abs(depth[row, column] - w[on_screen]) < 0.05 * w[on_screen]
-    return seen
+    return np.where(on_screen, row, 0).astype(int), np.where(on_screen, column, 0).astype(int), on_screen
+
+
+def seen_by_camera(points, projection, depth):
+    """Whether the camera (at the origin, PROJECTION, the DEPTH it rendered) sees each of
+    POINTS (..., 3, view space) itself, not something in front of it: on screen, and the
+    depth there within 5 % of the point's."""
+    row, column, on_screen = camera_texel(points, projection, depth.shape[::-1])
+    return on_screen & (np.abs(depth[row, column] + points[..., 2]) < 0.05 * -points[..., 2])
 
 
 def mirror_image(vectors, axis, plane=0.0):

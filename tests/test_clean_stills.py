@@ -25,13 +25,13 @@ MARGIN_PX = 2  # pixels within this distance of an edge of the mirror image are 
 TOLERANCE = 0.05  # per channel, against box contrasts of 0.5 and more
 
 
-def mirror_scene(roughness, colours=COLOURS, size=(WIDTH, HEIGHT)):
+def mirror_scene(roughness, colours=COLOURS, size=(WIDTH, HEIGHT), boxes=BOXES):
     width, height = size
     projection = perspective(width, height)
-    depth, normal = raycast(width, height, projection, BOXES, floor_y=FLOOR_Y)
+    depth, normal = raycast(width, height, projection, boxes, floor_y=FLOOR_Y)
     rays = pixel_rays(width, height, projection)
     floor = np.isclose(normal[..., 1], 1.0) & (depth < CLIP_END)
-    _, box_seen, _ = intersect_boxes(np.zeros_like(rays), rays, BOXES, depth.astype(np.float64) + 1e-3)
+    _, box_seen, _ = intersect_boxes(np.zeros_like(rays), rays, boxes, depth.astype(np.float64) + 1e-3)
     radiance = np.zeros((height, width, 4), np.float32)
     radiance[box_seen >= 0, :3] = colours[box_seen[box_seen >= 0]]
     surface_roughness = np.where(floor, roughness, 1.0).astype(np.float32)

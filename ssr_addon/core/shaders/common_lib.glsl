@@ -121,29 +121,13 @@ vec3 pyramid_sample(sampler2D atlas, vec4 lower_rect, vec4 upper_rect, float lev
   return mix(a, b, level - floor(level));
 }
 
-/* Bilinear sample of the level-0 rectangle LEVEL0 of an atlas at POSITION_PX (pixels of a
- * SIZE-pixel view), the four texels weighed by whether they show the surface the texel under
- * POSITION_PX shows (its normal, from NORMAL_TX, within 25 degrees): a hit where a wall meets
- * the floor must not read half of the floor's own colour. */
-vec3 surface_sample(sampler2D atlas, vec4 level0, sampler2D normal_tx, vec2 position_px, vec2 size)
+/* The colour of the texel of level-0 rectangle LEVEL0 that a sharp hit at UV lies in. The frame
+ * is already filtered over each pixel, and a plane or convex mirror never magnifies what it
+ * reflects (its virtual image lies at least as far away as the object), so a blend of the texels
+ * around the hit would only blur the reflection again; and where a wall meets the floor, the
+ * wall's anti-aliased last row holds the floor's colour, which a blend read into the floor's
+ * reflection of the wall as a bright line. */
+vec3 texel_colour(sampler2D atlas, vec4 level0, vec2 uv)
 {
-  ivec2 last = ivec2(size) - 1;
-  ivec2 hit_texel = clamp(ivec2(floor(position_px)), ivec2(0), last);
-  vec3 hit_normal = texelFetch(normal_tx, hit_texel, 0).xyz;
-  vec2 corner = position_px - 0.5;
-  ivec2 base = ivec2(floor(corner));
-  vec2 blend = corner - vec2(base);
-  vec3 sum = vec3(0.0);
-  float weight_sum = 0.0;
-  for (int i = 0; i < 4; i++) {
-    ivec2 offset = ivec2(i & 1, i >> 1);
-    ivec2 texel = clamp(base + offset, ivec2(0), last);
-    float weight = (offset.x == 1 ? blend.x : 1.0 - blend.x) * (offset.y == 1 ? blend.y : 1.0 - blend.y);
-    bool same_surface = texel == hit_texel || dot(texelFetch(normal_tx, texel, 0).xyz, hit_normal) > 0.9;
-    if (same_surface && weight > 0.0) {
-      sum += weight * atlas_fetch(atlas, level0, texel).rgb;
-      weight_sum += weight;
-    }
-  }
-  return weight_sum > 0.0 ? sum / weight_sum : atlas_fetch(atlas, level0, hit_texel).rgb;
+  return atlas_fetch(atlas, level0, ivec2(floor(uv * level0.zw))).rgb;
 }

@@ -128,8 +128,7 @@ vec3 capture_radiance(vec2 hit_uv, float hit_depth, float hit_distance, float so
     return pyramid_sample(capture_color_tx, params.capture_color_level[lower], params.capture_color_level[upper],
                           level, hit_uv);
   }
-  vec3 sharp = surface_sample(capture_color_tx, params.capture_color_level[0], capture_normal_tx,
-                              hit_uv * params.capture_size, params.capture_size);
+  vec3 sharp = texel_colour(capture_color_tx, params.capture_color_level[0], hit_uv);
   return mix(sharp, atlas_sample(capture_color_tx, params.capture_color_level[upper], hit_uv).rgb, level);
 }
 
@@ -227,7 +226,11 @@ void main()
   /* A mirror's ray runs along the capture camera's own ray through its hit: moving less than a
    * pixel on the capture, it cannot leave it, and the edge fade (for rays that run on past their
    * hit) would only leave the frame's edge rows to the probe. */
-  float fade = length(ray.delta_px) >= 1.0 ? border_fade(hit_uv, ray.delta_px) : 1.0;
+  float lobe_px = params.use_importance_sampling != 0 ?
+                      lobe_spread_px(ggx_alpha(roughness), hit_distance,
+                                     pixel_footprint_of(params.capture_view_to_clip, params.capture_size.y,
+                                                        -hit_position.z)) : 0.0;
+  float fade = length(ray.delta_px) >= 1.0 ? border_fade(hit_uv, ray.delta_px, lobe_px) : 1.0;
   if (same_surface) {
     /* The screen's hit stands as far as it is not faded (near the screen's edge, or towards the
      * camera); the capture, which sees the same surface clear of both, takes the rest from the

@@ -71,9 +71,7 @@ vec3 hit_radiance(vec2 hit_uv, float hit_distance, float solid_angle)
   if (lower > 0) {
     return pyramid_sample(color_tx, params.color_level[lower], params.color_level[upper], level, hit_uv);
   }
-  /* A sharp hit reads the surface it hit, not what lies beside it on screen. */
-  vec3 sharp = surface_sample(color_tx, params.color_level[0], normal_tx, hit_uv * params.viewport_size,
-                              params.viewport_size);
+  vec3 sharp = texel_colour(color_tx, params.color_level[0], hit_uv);
   return mix(sharp, atlas_sample(color_tx, params.color_level[upper], hit_uv).rgb, level);
 }
 

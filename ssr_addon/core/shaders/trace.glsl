@@ -169,7 +169,10 @@ void main()
   }
   bool in_frame = all(greaterThanEqual(hit_px, params.frame_rect.xy)) && all(lessThan(hit_px, params.frame_rect.zw));
   ray_stats_img.w = float(in_frame ? RAY_OUTCOME_SCREEN : RAY_OUTCOME_GUARD_BAND);
-  ray_dir_img.w = distance(origin, ray_view_position(ray, t));
+  vec3 hit_position = ray_view_position(ray, t);
+  ray_dir_img.w = distance(origin, hit_position);
   ray_hit_img.xy = hit_uv;
-  ray_hit_img.w = border_fade(hit_uv, ray.delta_px) * camera_facing_fade(incident, direction);
+  float lobe_px = params.use_importance_sampling != 0 ?
+                      lobe_spread_px(alpha, ray_dir_img.w, pixel_footprint(-hit_position.z)) : 0.0;
+  ray_hit_img.w = border_fade(hit_uv, ray.delta_px, lobe_px) * camera_facing_fade(incident, direction);
 }
