@@ -14,14 +14,21 @@ def test_history_helps_every_view_of_an_orbit_over_the_wet_street(gpu_backend, t
     """24 views, 1 degree each, of a 320x180 view captured at 160x90 (the default Live
     Resolution), as the bench's orbit. The street's last views keep only a strip of wet ground
     along the frame's edge, where a history clipped to one iteration's noisy neighbourhood came
-    out darker than no history at all."""
+    out darker than no history at all (0.245 against 0.213). Each still stops once a doubling of
+    its iterations moves it by less than noise_threshold of its level, so it lies about that far
+    from what it converges to, and two errors measured against it differ by less than that
+    only within what it can tell: a view counts as worse with history by more than that.
+    Over the orbit, history must also take a fifth off the error without it."""
     from lab.bench.scenes import resolve_scene
     from lab.live_latency import orbit_quality
-    _, rows, _ = orbit_quality(load_scene(resolve_scene("wet_street")), tmp_path, ChainSettings(), (160, 90), 24)
+    settings = ChainSettings()
+    _, rows, _ = orbit_quality(load_scene(resolve_scene("wet_street")), tmp_path, settings, (160, 90), 24)
     assert len(rows) == 24
     worse = [(row["view"], round(row["moving"], 4), round(row["without_history"], 4))
-             for row in rows if row["moving"] > row["without_history"]]
+             for row in rows if row["moving"] > row["without_history"] + settings.noise_threshold]
     assert not worse, f"views worse with history (view, moving, without history): {worse}"
+    moving, without_history = (sum(row[name] for row in rows) / len(rows) for name in ("moving", "without_history"))
+    assert moving <= 0.8 * without_history, f"mean error {moving:.3f} with history, {without_history:.3f} without"
 
 
 @pytest.mark.xfail(strict=True, reason="over the one-sample views an artist's orbit draws, the moving view flickers "
