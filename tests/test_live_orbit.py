@@ -16,8 +16,8 @@ def test_history_helps_every_view_of_an_orbit_over_the_wet_street(gpu_backend, t
     along the frame's edge, where a history clipped to one iteration's noisy neighbourhood came
     out darker than no history at all (0.245 against 0.213). Each still stops once a doubling of
     its iterations moves it by less than noise_threshold of its level, so it lies about that far
-    from what it converges to, and two errors measured against it differ by less than that
-    only within what it can tell: a view counts as worse with history by more than that.
+    from what it converges to, and it cannot tell apart two errors measured against it that
+    differ by less than that: a view counts as worse with history only by more than that.
     Over the orbit, history must also take a fifth off the error without it."""
     from lab.bench.scenes import resolve_scene
     from lab.live_latency import orbit_quality

@@ -226,10 +226,9 @@ void main()
   /* A mirror's ray runs along the capture camera's own ray through its hit: moving less than a
    * pixel on the capture, it cannot leave it, and the edge fade (for rays that run on past their
    * hit) would only leave the frame's edge rows to the probe. */
-  float lobe_px = params.use_importance_sampling != 0 ?
-                      lobe_spread_px(ggx_alpha(roughness), hit_distance,
-                                     pixel_footprint_of(params.capture_view_to_clip, params.capture_size.y,
-                                                        -hit_position.z)) : 0.0;
+  float lobe_px = lobe_spread_px(ggx_alpha(roughness), hit_distance,
+                                 pixel_footprint_of(params.capture_view_to_clip, params.capture_size.y,
+                                                    -hit_position.z));
   float fade = length(ray.delta_px) >= 1.0 ? border_fade(hit_uv, ray.delta_px, lobe_px) : 1.0;
   if (same_surface) {
     /* The screen's hit stands as far as it is not faded (near the screen's edge, or towards the

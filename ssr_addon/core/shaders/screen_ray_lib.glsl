@@ -118,9 +118,13 @@ int miss_outcome(ScreenRay ray, float t_end)
 #define LOBE_RAMP_PER_ALPHA 6.7
 
 /* How far, in pixels of the screen, a lobe of GGX ALPHA spreads its rays' hits HIT_DISTANCE
- * away, where a pixel is FOOTPRINT across. */
+ * away, where a pixel is FOOTPRINT across; 0 where rays run along the mirror direction
+ * (importance sampling off). */
 float lobe_spread_px(float alpha, float hit_distance, float footprint)
 {
+  if (params.use_importance_sampling == 0) {
+    return 0.0;
+  }
   return LOBE_RAMP_PER_ALPHA * alpha * hit_distance / max(footprint, 1e-30);
 }
 
@@ -145,9 +149,8 @@ float border_fade(vec2 uv, vec2 direction_px, float lobe_px)
   /* A ray that does not move on screen: the nearest edge. */
   vec2 distance_to_exit = direction_length > 0.0 ? room * direction_length / max(abs(direction), vec2(1e-30)) :
                                                    min(uv, 1.0 - uv);
-  /* The lobe's spread in the same units: along the ray, a pixel is 1 / SCREEN_SIZE of the screen per axis. */
-  vec2 unit_px = direction_length > 0.0 ? direction_px / max(length(direction_px), 1e-30) : vec2(0.0, 1.0);
-  float lobe = lobe_px * length(unit_px / SCREEN_SIZE);
+  /* The lobe's spread in the same units, along the ray (a ray that does not move: a row's height). */
+  float lobe = direction_length > 0.0 ? lobe_px * direction_length / length(direction_px) : lobe_px / SCREEN_SIZE.y;
   float ramp = sqrt(max(params.border_fade * params.border_fade - lobe * lobe, 0.0));
   return clamp(min(distance_to_exit.x, distance_to_exit.y) / max(ramp, 1e-6), 0.0, 1.0);
 }

@@ -172,7 +172,6 @@ void main()
   vec3 hit_position = ray_view_position(ray, t);
   ray_dir_img.w = distance(origin, hit_position);
   ray_hit_img.xy = hit_uv;
-  float lobe_px = params.use_importance_sampling != 0 ?
-                      lobe_spread_px(alpha, ray_dir_img.w, pixel_footprint(-hit_position.z)) : 0.0;
+  float lobe_px = lobe_spread_px(alpha, ray_dir_img.w, pixel_footprint(-hit_position.z));
   ray_hit_img.w = border_fade(hit_uv, ray.delta_px, lobe_px) * camera_facing_fade(incident, direction);
 }
